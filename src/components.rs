@@ -1,0 +1,93 @@
+//! Per-particle state (MODEL.md §1). Every body — a primary grain or an
+//! agglomerate of grains — is one entity carrying all of these components.
+//!
+//! Components hold SI values in `f64`; vectors are [`glam::DVec3`]. The radius and
+//! hardness are derived quantities kept as components so that systems can read
+//! them without recomputing: whoever changes the mass must update [`Radius`], and
+//! whoever changes the [`Temperature`] must update [`Hardness`] (see
+//! [`crate::resources::Material::hardness`]).
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+
+/// Marker for particle entities (resources are entities too in bevy_ecs 0.20,
+/// so particle queries filter on this).
+#[derive(Component, Debug, Clone, Copy, Default)]
+pub struct Particle;
+
+/// Stable particle id: never reused within a run. Used for every ordering that
+/// must be deterministic, for recording (Foxglove entity id) and for output.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct ParticleId(pub u64);
+
+/// Centre position r [m], kept inside the periodic box [−D, D]³.
+#[derive(Component, Debug, Clone, Copy, PartialEq)]
+pub struct Position(pub DVec3);
+
+/// Velocity v [m/s].
+#[derive(Component, Debug, Clone, Copy, PartialEq)]
+pub struct Velocity(pub DVec3);
+
+/// Mass m [kg].
+#[derive(Component, Debug, Clone, Copy, PartialEq)]
+pub struct Mass(pub f64);
+
+/// Radius b [m] = (3 m / (4 π ρ))^(1/3); derived from [`Mass`].
+#[derive(Component, Debug, Clone, Copy, PartialEq)]
+pub struct Radius(pub f64);
+
+/// Lumped (uniform) temperature θ [K].
+#[derive(Component, Debug, Clone, Copy, PartialEq)]
+pub struct Temperature(pub f64);
+
+/// Hardness H [Pa] = H0 · exp(Q / (R θ)); derived from [`Temperature`]; may be +∞.
+#[derive(Component, Debug, Clone, Copy, PartialEq)]
+pub struct Hardness(pub f64);
+
+/// Number of primary grains in the body (m / m_primary), as `f64`.
+#[derive(Component, Debug, Clone, Copy, PartialEq)]
+pub struct Primaries(pub f64);
+
+/// Everything a particle entity is spawned with.
+#[derive(Bundle, Debug, Clone)]
+pub struct ParticleBundle {
+    pub marker: Particle,
+    pub id: ParticleId,
+    pub position: Position,
+    pub velocity: Velocity,
+    pub mass: Mass,
+    pub radius: Radius,
+    pub temperature: Temperature,
+    pub hardness: Hardness,
+    pub primaries: Primaries,
+}
+
+/// A plain-data copy of one body's state, used for output and by pure functions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyState {
+    pub id: u64,
+    pub position: DVec3,
+    pub velocity: DVec3,
+    pub mass: f64,
+    pub radius: f64,
+    pub temperature: f64,
+    pub hardness: f64,
+    pub primaries: f64,
+}
+
+impl BodyState {
+    /// The components of this body, ready to spawn.
+    pub fn bundle(&self) -> ParticleBundle {
+        ParticleBundle {
+            marker: Particle,
+            id: ParticleId(self.id),
+            position: Position(self.position),
+            velocity: Velocity(self.velocity),
+            mass: Mass(self.mass),
+            radius: Radius(self.radius),
+            temperature: Temperature(self.temperature),
+            hardness: Hardness(self.hardness),
+            primaries: Primaries(self.primaries),
+        }
+    }
+}

@@ -1,0 +1,75 @@
+//! Typed errors of the library. The binary wraps them with `anyhow` context and
+//! prints `{:#}`; nothing here panics on bad input.
+
+use std::fmt;
+
+/// One out-of-range or inconsistent field.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidationIssue {
+    /// Field path, e.g. `material.rho` or `cloud.v_rel.0`.
+    pub path: String,
+    /// What is wrong and what is allowed.
+    pub message: String,
+}
+
+impl fmt::Display for ValidationIssue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.path, self.message)
+    }
+}
+
+/// Why a scenario could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    #[error("cannot read scenario `{path}`: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("scenario field `{path}`: {message}")]
+    Parse { path: String, message: String },
+    #[error("invalid scenario:\n  {}", .0.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("\n  "))]
+    Invalid(Vec<ValidationIssue>),
+}
+
+/// Why a simulation could not be set up or could not finish.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    #[error(
+        "cloud placement failed: placed {placed} of {requested} particles of radius {radius:e} m \
+         (volume fraction {volume_fraction:.3}) after {attempts} attempts; \
+         lower `cloud.count` or `cloud.size_ratio`/`cloud.radius` (fractions up to ~0.30 place quickly)"
+    )]
+    Placement {
+        placed: usize,
+        requested: usize,
+        radius: f64,
+        volume_fraction: f64,
+        attempts: u64,
+    },
+    #[error(
+        "cloud.bodies.{i} and cloud.bodies.{j} overlap: centres {distance:e} m apart, radii sum to {contact:e} m"
+    )]
+    Overlap {
+        i: usize,
+        j: usize,
+        distance: f64,
+        contact: f64,
+    },
+    #[error(
+        "run stopped at step {step} (t = {time:e} s of {end:e} s): reached time.max_steps = {max_steps}"
+    )]
+    StepLimit {
+        step: u64,
+        time: f64,
+        end: f64,
+        max_steps: u64,
+    },
+    #[error("run interrupted at step {step} (t = {time:e} s)")]
+    Interrupted { step: u64, time: f64 },
+    #[error("non-finite state at step {step}: {what}")]
+    NonFinite { step: u64, what: String },
+}

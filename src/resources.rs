@@ -1,0 +1,391 @@
+//! Scene-wide constants and run state, held as ECS resources.
+//!
+//! - [`MaterialConstants`]: the one material of the scene (MODEL.md §1) and the
+//!   hardness law with its overflow rule;
+//! - [`ImpactSettings`], [`StepControl`], [`BoxGeometry`]: how the step is computed;
+//! - [`SimClock`], [`Counters`], [`EnergyLedger`], [`InvariantReport`]: run state;
+//! - [`ContactList`], [`ImpactRecords`], [`NeighbourPairs`]: data handed from one
+//!   stage of the step to the next;
+//! - [`SimRng`]: the single seeded generator of the scene.
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use serde::{Deserialize, Serialize};
+
+use crate::scenario::{ContactRule, CoolingMethod, DurationLaw, Scenario, SolverKind, Stepping};
+
+/// Universal gas constant R [J/(mol K)].
+pub const GAS_CONSTANT: f64 = 8.314462618;
+/// Stefan–Boltzmann constant B [W/(m² K⁴)].
+pub const STEFAN_BOLTZMANN: f64 = 5.670374419e-8;
+/// Exponents Q/(Rθ) above this give H = +∞ (exp(709) overflows f64).
+pub const HARDNESS_EXPONENT_LIMIT: f64 = 700.0;
+
+/// The scene's material (MODEL.md §1), SI units.
+#[derive(Resource, Debug, Clone, Copy, PartialEq)]
+pub struct MaterialConstants {
+    /// Density ρ [kg/m³].
+    pub rho: f64,
+    /// Base hardness H0 [Pa].
+    pub h0: f64,
+    /// Heat capacity C [J/(kg K)].
+    pub heat_capacity: f64,
+    /// Activation energy Q [J/mol].
+    pub activation_energy: f64,
+    /// Reaction constant α [J/m²].
+    pub alpha: f64,
+    /// Surface energy γ [J/m²]; +∞ disables fragmentation.
+    pub gamma: f64,
+    /// Friction coefficient μ0.
+    pub mu0: f64,
+    /// Emissivity ε.
+    pub emissivity: f64,
+    /// Convection coefficient hc [W/(m² K)].
+    pub convection: f64,
+    /// Gas temperature θ0 [K].
+    pub theta_gas: f64,
+    /// Far-field radiation temperature θs [K].
+    pub theta_far: f64,
+    /// Mass of one primary grain [kg].
+    pub primary_mass: f64,
+    /// Radius of one primary grain b0 [m].
+    pub primary_radius: f64,
+}
+
+impl MaterialConstants {
+    pub fn from_scenario(s: &Scenario) -> Self {
+        let m = &s.material;
+        let b0 = s.primary_radius();
+        Self {
+            rho: m.rho,
+            h0: m.H0,
+            heat_capacity: m.C,
+            activation_energy: m.Q,
+            alpha: m.alpha,
+            gamma: m.gamma.unwrap_or(f64::INFINITY),
+            mu0: m.mu0,
+            emissivity: m.epsilon,
+            convection: m.hc,
+            theta_gas: m.theta0,
+            theta_far: m.theta_s,
+            primary_mass: 4.0 / 3.0 * std::f64::consts::PI * b0.powi(3) * m.rho,
+            primary_radius: b0,
+        }
+    }
+
+    /// Hardness H = H0 · exp(Q / (R θ)) [Pa]; +∞ when the exponent exceeds 700
+    /// (MODEL.md §1, "hardness overflow"). Never NaN for θ > 0.
+    pub fn hardness(&self, theta: f64) -> f64 {
+        hardness(self.h0, self.activation_energy, theta)
+    }
+
+    /// Radius of a body of mass `m` [kg]: (3 m / (4 π ρ))^(1/3).
+    pub fn radius_of_mass(&self, m: f64) -> f64 {
+        (3.0 * m / (4.0 * std::f64::consts::PI * self.rho)).cbrt()
+    }
+
+    /// True when cooling would change anything (ε > 0 or hc > 0).
+    pub fn cools(&self) -> bool {
+        self.emissivity > 0.0 || self.convection > 0.0
+    }
+}
+
+/// H0 · exp(Q / (R θ)) with the overflow rule of MODEL.md §1.
+pub fn hardness(h0: f64, q: f64, theta: f64) -> f64 {
+    if q == 0.0 {
+        return h0;
+    }
+    let exponent = q / (GAS_CONSTANT * theta);
+    if exponent > HARDNESS_EXPONENT_LIMIT || exponent.is_nan() {
+        f64::INFINITY
+    } else {
+        h0 * exponent.exp()
+    }
+}
+
+/// Parameters of the impact/heat solve (MODEL.md §5).
+#[derive(Resource, Debug, Clone, Copy, PartialEq)]
+pub struct ImpactSettings {
+    pub a0: f64,
+    pub af: f64,
+    pub beta: f64,
+    pub duration: DurationLaw,
+    pub friction_scales_with_adhesion: bool,
+    pub tol: f64,
+    pub max_iterations: u32,
+    pub solver: SolverKind,
+}
+
+impl ImpactSettings {
+    pub fn from_scenario(s: &Scenario) -> Self {
+        let i = &s.impact;
+        Self {
+            a0: i.a0,
+            af: i.af,
+            beta: i.beta,
+            duration: i.duration,
+            friction_scales_with_adhesion: i.friction_scales_with_adhesion,
+            tol: i.tol,
+            max_iterations: i.max_iterations,
+            solver: i.solver,
+        }
+    }
+}
+
+/// The periodic cube [−D, D]³.
+#[derive(Resource, Debug, Clone, Copy, PartialEq)]
+pub struct BoxGeometry {
+    /// Half-width D [m].
+    pub half_width: f64,
+}
+
+impl BoxGeometry {
+    /// Side length 2D [m].
+    pub fn side(&self) -> f64 {
+        2.0 * self.half_width
+    }
+    /// Minimum-image displacement of `d` (each component in [−D, D]).
+    #[inline]
+    pub fn min_image(&self, d: DVec3) -> DVec3 {
+        let l = self.side();
+        d - l * (d / l).round()
+    }
+    /// Map a position back into [−D, D) (periodic re-entry).
+    #[inline]
+    pub fn wrap(&self, r: DVec3) -> DVec3 {
+        let l = self.side();
+        let mut w = r - l * ((r + DVec3::splat(self.half_width)) / l).floor();
+        // Guard the rounding edge where r + D is a hair below a multiple of L.
+        for k in 0..3 {
+            if w[k] >= self.half_width {
+                w[k] -= l;
+            }
+            if w[k] < -self.half_width {
+                w[k] = -self.half_width;
+            }
+        }
+        w
+    }
+}
+
+/// How the step size is chosen (MODEL.md §4).
+#[derive(Resource, Debug, Clone, Copy, PartialEq)]
+pub enum StepControl {
+    Adaptive {
+        /// Step factor c.
+        step_factor: f64,
+        /// Δt_min [s].
+        dt_min: f64,
+        /// Δt_max [s].
+        dt_max: f64,
+        /// Neighbour-search margin [m].
+        skin: f64,
+    },
+    Fixed {
+        /// Δt [s].
+        dt: f64,
+    },
+}
+
+impl StepControl {
+    pub fn from_scenario(s: &Scenario) -> Self {
+        match s.time.stepping {
+            Stepping::Adaptive {
+                step_factor,
+                dt_min,
+                dt_max,
+                skin,
+            } => StepControl::Adaptive {
+                step_factor,
+                dt_min,
+                dt_max,
+                skin: skin * s.primary_radius(),
+            },
+            Stepping::Fixed { dt } => StepControl::Fixed { dt },
+        }
+    }
+    /// Search margin beyond touching [m]: the skin, or 0 for fixed steps.
+    pub fn skin(&self) -> f64 {
+        match *self {
+            StepControl::Adaptive { skin, .. } => skin,
+            StepControl::Fixed { .. } => 0.0,
+        }
+    }
+}
+
+/// Relative gap tolerance: g ≤ tol·(b_i + b_j) counts as touching (MODEL.md §4).
+pub const CONTACT_TOLERANCE: f64 = 1e-9;
+
+/// Physics options that systems read (which rule, which integrator).
+#[derive(Resource, Debug, Clone, Copy, PartialEq)]
+pub struct PhysicsOptions {
+    pub contact_rule: ContactRule,
+    pub cooling: CoolingMethod,
+}
+
+/// Simulated time and step bookkeeping.
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Default)]
+pub struct SimClock {
+    /// Simulated time t [s] at the start of the current step.
+    pub time: f64,
+    /// End time T [s].
+    pub end: f64,
+    /// Δt [s] of the current step (set by the time-step system).
+    pub dt: f64,
+    /// Steps completed.
+    pub step: u64,
+    /// True when this step's Δt was clamped at Δt_min while a contact was due sooner.
+    pub clamped_at_min: bool,
+    /// True when the last step merged or fragmented bodies (which may then overlap legitimately).
+    pub bodies_reshaped: bool,
+}
+
+/// Event counters of the run (cheap, always on).
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Counters {
+    /// Impacts resolved (bounces + bonds).
+    pub impacts: u64,
+    pub bonds: u64,
+    pub bounces: u64,
+    /// Bodies that fragmented.
+    pub fragmentations: u64,
+    /// Pieces created by fragmentation.
+    pub fragments_created: u64,
+    /// Fixed-point iterations summed over all impacts.
+    pub fixed_point_iterations: u64,
+    /// Bracketed-solver iterations summed over all impacts.
+    pub fallback_iterations: u64,
+    /// Impacts whose plain iteration did not converge and needed the bracketed fallback.
+    pub fallbacks: u64,
+    /// Impacts whose plain iteration did not converge (solver `plain` only: last iterate used).
+    pub unconverged: u64,
+    /// Contacts deferred to the next step because a body already had an impact.
+    pub deferred_contacts: u64,
+    /// Steps whose Δt was clamped at Δt_min although a contact was due sooner.
+    pub clamped_steps: u64,
+    /// Approaching pairs found overlapping beyond the contact tolerance (adaptive, c ≤ 1: a missed contact).
+    pub overlap_violations: u64,
+    /// Invariant checks that failed.
+    pub invariant_violations: u64,
+}
+
+/// Energy bookkeeping (MODEL.md §10): E = kinetic + Σ m C θ changes only by these.
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct EnergyLedger {
+    /// Reaction heat added, Σ 2 α a_c over impacts [J].
+    pub reaction_heat: f64,
+    /// Fracture surface energy removed from heat, Σ δZ [J].
+    pub fracture_energy: f64,
+    /// Heat lost by cooling [J].
+    pub cooling_loss: f64,
+    /// Kinetic energy dissipated in impacts (turned into heat) [J].
+    pub impact_dissipation: f64,
+}
+
+/// Reference totals at t = 0 and the worst invariant errors seen.
+#[derive(Resource, Debug, Clone, PartialEq, Default, Serialize)]
+pub struct InvariantReport {
+    pub initial_mass: f64,
+    pub initial_momentum: [f64; 3],
+    pub initial_energy: f64,
+    /// Σ m|v| at t = 0 [kg m/s]: the scale of momentum errors.
+    pub momentum_scale: f64,
+    /// Worst |M − M0| / M0.
+    pub max_mass_error: f64,
+    /// Worst |P − P0| / Σ m|v|.
+    pub max_momentum_error: f64,
+    /// Worst |E − E0 − ledger| / E0.
+    pub max_energy_error: f64,
+    /// First few violations, human readable.
+    pub violations: Vec<String>,
+}
+
+/// One contact pair to resolve this step, found by contact detection.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    pub a: Entity,
+    pub b: Entity,
+    /// Stable ids of a and b (a's id < b's id).
+    pub id_a: u64,
+    pub id_b: u64,
+    /// Unit normal from a to b (minimum image).
+    pub normal: DVec3,
+    /// Gap at detection [m] (negative = overlap).
+    pub gap: f64,
+}
+
+/// Contacts to resolve this step, in resolution order.
+#[derive(Resource, Debug, Default)]
+pub struct ContactList {
+    pub contacts: Vec<Contact>,
+}
+
+/// What one impact did to one body, for merging and fragmentation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImpactRecord {
+    pub a: Entity,
+    pub b: Entity,
+    pub id_a: u64,
+    pub id_b: u64,
+    /// Unit normal from a to b.
+    pub normal: DVec3,
+    /// True when the pair bonded (to be merged).
+    pub bonded: bool,
+    /// Kinetic energy each body lost in the pair's centre-of-mass frame [J].
+    pub lost_a: f64,
+    pub lost_b: f64,
+}
+
+/// Impacts resolved this step.
+#[derive(Resource, Debug, Default)]
+pub struct ImpactRecords {
+    pub records: Vec<ImpactRecord>,
+}
+
+/// Bodies that took part in an impact this step, with the energy they absorbed,
+/// after merging (a merged body carries both partners' energy). Read by fragmentation.
+#[derive(Resource, Debug, Default)]
+pub struct AbsorbedEnergy {
+    pub bodies: Vec<(Entity, f64)>,
+}
+
+/// Set when anything changed velocities, masses or the body set this step, so the
+/// time-step system must search neighbours again instead of reusing contact detection's.
+#[derive(Resource, Debug, Default, Clone, Copy)]
+pub struct StateChanged(pub bool);
+
+/// The scene's single random generator.
+#[derive(Resource, Debug)]
+pub struct SimRng(pub StdRng);
+
+impl SimRng {
+    pub fn seeded(seed: u64) -> Self {
+        SimRng(StdRng::seed_from_u64(seed))
+    }
+}
+
+/// Next unused stable id.
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Eq)]
+pub struct IdAllocator {
+    pub next: u64,
+}
+
+impl IdAllocator {
+    pub fn allocate(&mut self) -> u64 {
+        let id = self.next;
+        self.next += 1;
+        id
+    }
+}
+
+/// Per-stage wall-clock timers [s] (cheap, always on).
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct StageTimers {
+    pub contact: f64,
+    pub impact: f64,
+    pub time_step: f64,
+    pub cooling: f64,
+    pub drift: f64,
+}

@@ -1,0 +1,381 @@
+//! The step pipeline, the plugin API and the [`Simulation`] that runs a scenario.
+//!
+//! The pipeline is read here, top to bottom, in [`StepSystems`]: the sets are
+//! chained once, in the order of MODEL.md §3 (with the step-size choice moved after
+//! the events it depends on — see `systems/time_step.rs`). Physics is added by
+//! [`SimPlugin`]s — the built-ins in `systems/` and any extension alike — which put
+//! systems into these sets. `First`/`Last` are empty slots for extensions.
+//!
+//! The schedule runs single-threaded and treats ambiguous system order as an error,
+//! so a missing ordering constraint fails loudly instead of making runs differ.
+
+use std::ops::ControlFlow;
+
+use bevy_ecs::prelude::*;
+use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleThreadedExecutor};
+use bevy_ecs::system::ScheduleSystem;
+
+use crate::cloud::generate_cloud;
+use crate::components::{
+    BodyState, Hardness, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature,
+    Velocity,
+};
+use crate::error::SimError;
+use crate::observables::Summary;
+use crate::resources::*;
+use crate::scenario::Scenario;
+use crate::systems;
+
+/// The schedule that advances the world by one step.
+#[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct SimStep;
+
+/// The stages of one step L → L+1, chained in this order.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum StepSystems {
+    /// 0. Empty slot for extensions, before anything else.
+    First,
+    /// 1. Contact detection: periodic cell grid, contacts of this step (MODEL.md §4).
+    Contact,
+    /// 2. Impact / heat solve for every contact (MODEL.md §5).
+    Impact,
+    /// 3. Merging of bonded pairs (MODEL.md §6).
+    Merge,
+    /// 4. Fragmentation of bodies that absorbed enough energy (MODEL.md §7).
+    Fragment,
+    /// 5. The next step size from post-impact velocities (MODEL.md §4).
+    TimeStep,
+    /// 6. Cooling by convection and radiation (MODEL.md §8).
+    Cooling,
+    /// 7. Drift r ← r + Δt v.
+    Drift,
+    /// 8. Periodic wrapping (MODEL.md §9).
+    Boundary,
+    /// 9. Invariant checks (MODEL.md §10).
+    Diagnostics,
+    /// 10. Empty slot for extensions (recording, statistics), after the step.
+    Last,
+}
+
+impl StepSystems {
+    /// Every stage, in pipeline order.
+    pub const ORDER: [StepSystems; 11] = [
+        StepSystems::First,
+        StepSystems::Contact,
+        StepSystems::Impact,
+        StepSystems::Merge,
+        StepSystems::Fragment,
+        StepSystems::TimeStep,
+        StepSystems::Cooling,
+        StepSystems::Drift,
+        StepSystems::Boundary,
+        StepSystems::Diagnostics,
+        StepSystems::Last,
+    ];
+}
+
+/// A unit of physics: adds resources and systems to a simulation being built.
+/// Built-in physics uses this too; see `examples/` for one written outside the crate.
+pub trait SimPlugin {
+    /// Short name, listed by [`Simulation::plugins`].
+    fn name(&self) -> &'static str;
+    /// Add resources and systems. Read [`SimBuilder::scenario`] to add only what the scene needs.
+    fn build(&self, sim: &mut SimBuilder);
+}
+
+/// A world and schedule under construction.
+pub struct SimBuilder {
+    world: World,
+    schedule: Schedule,
+    scenario: Scenario,
+    plugins: Vec<&'static str>,
+}
+
+impl SimBuilder {
+    /// A world holding the scenario's cloud and resources, with an empty pipeline.
+    pub fn new(scenario: &Scenario) -> Result<Self, SimError> {
+        scenario.validate()?;
+        let mut world = World::new();
+        let material = MaterialConstants::from_scenario(scenario);
+        let mut rng = SimRng::seeded(scenario.seed);
+        let cloud = generate_cloud(scenario, &material, &mut rng.0)?;
+        let geometry = BoxGeometry {
+            half_width: scenario.domain.half_width,
+        };
+        let next_id = cloud.len() as u64;
+        let initial = systems::diagnostics::totals(
+            cloud.iter().map(|b| (b.mass, b.velocity, b.temperature)),
+            material.heat_capacity,
+        );
+        world.spawn_batch(cloud.iter().map(|b| b.bundle()));
+        world.insert_resource(material);
+        world.insert_resource(geometry);
+        world.insert_resource(ImpactSettings::from_scenario(scenario));
+        world.insert_resource(StepControl::from_scenario(scenario));
+        world.insert_resource(PhysicsOptions {
+            contact_rule: scenario.physics.contact_rule,
+            cooling: scenario.physics.cooling,
+        });
+        world.insert_resource(SimClock {
+            end: scenario.time.end,
+            ..Default::default()
+        });
+        world.insert_resource(rng);
+        world.insert_resource(IdAllocator { next: next_id });
+        world.insert_resource(InvariantReport {
+            initial_mass: initial.mass,
+            initial_momentum: initial.momentum.to_array(),
+            initial_energy: initial.energy(),
+            momentum_scale: initial.momentum_scale,
+            ..Default::default()
+        });
+        world.init_resource::<Counters>();
+        world.init_resource::<EnergyLedger>();
+        world.init_resource::<ContactList>();
+        world.init_resource::<ImpactRecords>();
+        world.init_resource::<StateChanged>();
+
+        let mut schedule = Schedule::new(SimStep);
+        schedule.set_executor(SingleThreadedExecutor::new());
+        schedule.set_build_settings(ScheduleBuildSettings {
+            ambiguity_detection: LogLevel::Error,
+            ..Default::default()
+        });
+        // The pipeline, in one place.
+        schedule.configure_sets(
+            (
+                StepSystems::First,
+                StepSystems::Contact,
+                StepSystems::Impact,
+                StepSystems::Merge,
+                StepSystems::Fragment,
+                StepSystems::TimeStep,
+                StepSystems::Cooling,
+                StepSystems::Drift,
+                StepSystems::Boundary,
+                StepSystems::Diagnostics,
+                StepSystems::Last,
+            )
+                .chain(),
+        );
+        schedule.add_systems(advance_clock.after(StepSystems::Last));
+        Ok(Self {
+            world,
+            schedule,
+            scenario: scenario.clone(),
+            plugins: Vec::new(),
+        })
+    }
+
+    /// The scenario being built.
+    pub fn scenario(&self) -> &Scenario {
+        &self.scenario
+    }
+
+    /// The world (for resources an extension needs to insert or read).
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+
+    /// Add systems to one stage. Systems within a stage run in the order they are chained.
+    pub fn add_systems<M>(
+        &mut self,
+        stage: StepSystems,
+        systems: impl IntoScheduleConfigs<ScheduleSystem, M>,
+    ) -> &mut Self {
+        self.schedule.add_systems(systems.in_set(stage));
+        self
+    }
+
+    pub fn insert_resource<R: Resource>(&mut self, value: R) -> &mut Self {
+        self.world.insert_resource(value);
+        self
+    }
+
+    pub fn init_resource<R: Resource + FromWorld>(&mut self) -> &mut Self {
+        self.world.init_resource::<R>();
+        self
+    }
+
+    /// Build one plugin into the simulation.
+    pub fn add_plugin(&mut self, plugin: &dyn SimPlugin) -> &mut Self {
+        plugin.build(self);
+        self.plugins.push(plugin.name());
+        self
+    }
+
+    /// Add the built-in physics (each plugin schedules only what the scene needs).
+    pub fn add_default_plugins(&mut self) -> &mut Self {
+        for plugin in systems::default_plugins() {
+            self.add_plugin(plugin.as_ref());
+        }
+        self
+    }
+
+    /// Finish: the runnable simulation.
+    pub fn build(self) -> Simulation {
+        Simulation {
+            world: self.world,
+            schedule: self.schedule,
+            scenario: self.scenario,
+            plugins: self.plugins,
+            wall_seconds: 0.0,
+        }
+    }
+}
+
+/// Closes the step: t ← t + Δt (exactly T on the last step), L ← L + 1.
+fn advance_clock(mut clock: ResMut<SimClock>) {
+    let next = clock.time + clock.dt;
+    // Land exactly on T when the step was cut to the remaining time.
+    clock.time = if clock.end - next <= 1e-12 * clock.end {
+        clock.end.max(next)
+    } else {
+        next
+    };
+    clock.step += 1;
+}
+
+/// A scenario's world and pipeline, ready to step.
+pub struct Simulation {
+    world: World,
+    schedule: Schedule,
+    scenario: Scenario,
+    plugins: Vec<&'static str>,
+    wall_seconds: f64,
+}
+
+impl Simulation {
+    /// The scenario with the built-in physics.
+    pub fn new(scenario: &Scenario) -> Result<Self, SimError> {
+        let mut builder = SimBuilder::new(scenario)?;
+        builder.add_default_plugins();
+        Ok(builder.build())
+    }
+
+    /// Start building with custom plugins (call [`SimBuilder::add_default_plugins`] for the built-ins).
+    pub fn builder(scenario: &Scenario) -> Result<SimBuilder, SimError> {
+        SimBuilder::new(scenario)
+    }
+
+    pub fn scenario(&self) -> &Scenario {
+        &self.scenario
+    }
+    /// Names of the plugins built in, in order.
+    pub fn plugins(&self) -> &[&'static str] {
+        &self.plugins
+    }
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+    pub fn clock(&self) -> SimClock {
+        *self.world.resource::<SimClock>()
+    }
+    pub fn counters(&self) -> Counters {
+        *self.world.resource::<Counters>()
+    }
+    pub fn ledger(&self) -> EnergyLedger {
+        *self.world.resource::<EnergyLedger>()
+    }
+    pub fn invariants(&self) -> InvariantReport {
+        self.world.resource::<InvariantReport>().clone()
+    }
+    pub fn material(&self) -> MaterialConstants {
+        *self.world.resource::<MaterialConstants>()
+    }
+    /// Wall-clock seconds spent in [`Simulation::step`] so far.
+    pub fn wall_seconds(&self) -> f64 {
+        self.wall_seconds
+    }
+
+    /// True once t = T.
+    pub fn is_finished(&self) -> bool {
+        let c = self.clock();
+        c.time >= c.end
+    }
+
+    /// Advance one step.
+    pub fn step(&mut self) -> Result<(), SimError> {
+        let clock = self.clock();
+        let limit = self.scenario.time.max_steps;
+        if clock.step >= limit {
+            return Err(SimError::StepLimit {
+                step: clock.step,
+                time: clock.time,
+                end: clock.end,
+                max_steps: limit,
+            });
+        }
+        let start = std::time::Instant::now();
+        self.schedule.run(&mut self.world);
+        self.wall_seconds += start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Run to T.
+    pub fn run(&mut self) -> Result<(), SimError> {
+        self.run_with(|_| ControlFlow::Continue(()))
+    }
+
+    /// Run to T, calling `observe` after every step; `Break` stops early with [`SimError::Interrupted`].
+    pub fn run_with(
+        &mut self,
+        mut observe: impl FnMut(&Simulation) -> ControlFlow<()>,
+    ) -> Result<(), SimError> {
+        while !self.is_finished() {
+            self.step()?;
+            if observe(self).is_break() {
+                let c = self.clock();
+                return Err(SimError::Interrupted {
+                    step: c.step,
+                    time: c.time,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Every body, sorted by stable id.
+    pub fn bodies(&mut self) -> Vec<BodyState> {
+        let mut query = self.world.query_filtered::<(
+            &ParticleId,
+            &Position,
+            &Velocity,
+            &Mass,
+            &Radius,
+            &Temperature,
+            &Hardness,
+            &Primaries,
+        ), With<Particle>>();
+        let mut bodies: Vec<BodyState> = query
+            .iter(&self.world)
+            .map(|(id, p, v, m, b, t, h, n)| BodyState {
+                id: id.0,
+                position: p.0,
+                velocity: v.0,
+                mass: m.0,
+                radius: b.0,
+                temperature: t.0,
+                hardness: h.0,
+                primaries: n.0,
+            })
+            .collect();
+        bodies.sort_by_key(|b| b.id);
+        bodies
+    }
+
+    /// Number of bodies now.
+    pub fn body_count(&mut self) -> usize {
+        let mut query = self.world.query_filtered::<(), With<Particle>>();
+        query.iter(&self.world).count()
+    }
+
+    /// Observables (MODEL.md §11), counters and invariant errors of the run so far.
+    pub fn summary(&mut self) -> Summary {
+        let bodies = self.bodies();
+        Summary::new(self, &bodies)
+    }
+}

@@ -1,0 +1,210 @@
+//! Stage 1 — contact detection (MODEL.md §4).
+//!
+//! Gathers the bodies into a table sorted by stable id, finds every pair within
+//! the neighbour margin with the periodic [`NeighbourGrid`], and picks this step's
+//! contacts: touching (g ≤ tol·(b_i + b_j)) and approaching (w > 0) pairs, deepest
+//! first, ties by ids, at most one impact per body per step (the rest are met next
+//! step). With the papers' `nearest_neighbour` rule a pair counts only if one body
+//! is the other's nearest neighbour.
+//!
+//! Reads: positions, velocities, radii, ids; [`StepControl`], [`PhysicsOptions`].
+//! Writes: [`ContactList`], [`NeighbourTable`] (reused by the time-step system when
+//! nothing changed), [`Counters`] (deferred contacts, overlap violations).
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+
+use super::grid::{NearPair, NeighbourGrid};
+use crate::components::{Mass, Particle, ParticleId, Position, Radius, Velocity};
+use crate::resources::{
+    BoxGeometry, CONTACT_TOLERANCE, Contact, ContactList, Counters, PhysicsOptions, SimClock,
+    StateChanged, StepControl,
+};
+use crate::scenario::ContactRule;
+
+/// The bodies of this step in stable-id order, plus their near pairs.
+#[derive(Resource, Debug, Default)]
+pub struct NeighbourTable {
+    pub ids: Vec<u64>,
+    pub entities: Vec<Entity>,
+    pub positions: Vec<DVec3>,
+    pub velocities: Vec<DVec3>,
+    pub radii: Vec<f64>,
+    pub masses: Vec<f64>,
+    /// Pairs with gap ≤ margin (skin, or the contact tolerance for fixed steps).
+    pub pairs: Vec<NearPair>,
+    grid: NeighbourGrid,
+    order: Vec<(u64, Entity, DVec3, DVec3, f64, f64)>,
+}
+
+pub type BodyQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        &'static ParticleId,
+        &'static Position,
+        &'static Velocity,
+        &'static Radius,
+        &'static Mass,
+    ),
+    With<Particle>,
+>;
+
+impl NeighbourTable {
+    /// Refill the table from the world and search pairs within `margin` [m].
+    pub fn rebuild(&mut self, bodies: &BodyQuery, geometry: &BoxGeometry, margin: f64) {
+        self.order.clear();
+        for (e, id, p, v, r, m) in bodies.iter() {
+            self.order.push((id.0, e, p.0, v.0, r.0, m.0));
+        }
+        // Query order is not guaranteed: sort by the stable id (nearly sorted → cheap).
+        self.order.sort_by_key(|row| row.0);
+        self.ids.clear();
+        self.entities.clear();
+        self.positions.clear();
+        self.velocities.clear();
+        self.radii.clear();
+        self.masses.clear();
+        for &(id, e, p, v, r, m) in &self.order {
+            self.ids.push(id);
+            self.entities.push(e);
+            self.positions.push(p);
+            self.velocities.push(v);
+            self.radii.push(r);
+            self.masses.push(m);
+        }
+        self.grid.pairs_within(
+            &self.positions,
+            &self.radii,
+            geometry.half_width,
+            margin,
+            &mut self.pairs,
+        );
+    }
+
+    /// Closing speed w = (v_i − v_j)·n of a pair (> 0 when approaching).
+    #[inline]
+    pub fn closing_speed(&self, p: &NearPair) -> f64 {
+        let dist = p.d.length();
+        if dist == 0.0 {
+            return 0.0;
+        }
+        (self.velocities[p.i as usize] - self.velocities[p.j as usize]).dot(p.d / dist)
+    }
+
+    /// True when the pair touches within the contact tolerance.
+    #[inline]
+    pub fn touching(&self, p: &NearPair) -> bool {
+        p.gap <= CONTACT_TOLERANCE * (self.radii[p.i as usize] + self.radii[p.j as usize])
+    }
+}
+
+/// Margin of the neighbour search [m]: the skin, and never less than the contact tolerance.
+pub fn search_margin(control: &StepControl, table_max_radius: f64) -> f64 {
+    control
+        .skin()
+        .max(2.0 * CONTACT_TOLERANCE * table_max_radius)
+}
+
+/// Scratch for choosing contacts.
+#[derive(Resource, Debug, Default)]
+pub struct ContactScratch {
+    candidates: Vec<(f64, u64, u64, u32)>,
+    taken: Vec<bool>,
+    nearest: Vec<(f64, u32)>,
+}
+
+/// The system.
+#[allow(clippy::too_many_arguments)]
+pub fn detect_contacts(
+    bodies: BodyQuery,
+    geometry: Res<BoxGeometry>,
+    control: Res<StepControl>,
+    options: Res<PhysicsOptions>,
+    mut clock: ResMut<SimClock>,
+    mut table: ResMut<NeighbourTable>,
+    mut scratch: ResMut<ContactScratch>,
+    mut contacts: ResMut<ContactList>,
+    mut counters: ResMut<Counters>,
+    mut changed: ResMut<StateChanged>,
+) {
+    changed.0 = false;
+    let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
+    let margin = search_margin(&control, max_radius);
+    table.rebuild(&bodies, &geometry, margin);
+    contacts.contacts.clear();
+
+    let count = table.ids.len();
+    let ContactScratch {
+        candidates,
+        taken,
+        nearest,
+    } = &mut *scratch;
+    candidates.clear();
+    if options.contact_rule == ContactRule::NearestNeighbour {
+        nearest.clear();
+        nearest.resize(count, (f64::INFINITY, u32::MAX));
+        for p in &table.pairs {
+            for (a, b) in [(p.i, p.j), (p.j, p.i)] {
+                // Nearest by gap; ties go to the smaller id (index order = id order).
+                let slot = &mut nearest[a as usize];
+                if p.gap < slot.0 || (p.gap == slot.0 && b < slot.1) {
+                    *slot = (p.gap, b);
+                }
+            }
+        }
+    }
+    // An overlap deeper than this on an approaching pair means a contact was missed.
+    let check_overlaps = matches!(*control, StepControl::Adaptive { step_factor, .. } if step_factor <= 1.0)
+        && !clock.clamped_at_min
+        && clock.step > 0
+        && !clock.bodies_reshaped;
+    clock.bodies_reshaped = false;
+    for (k, p) in table.pairs.iter().enumerate() {
+        if !table.touching(p) || table.closing_speed(p) <= 0.0 {
+            continue;
+        }
+        let (i, j) = (p.i as usize, p.j as usize);
+        if check_overlaps && p.gap < -1e-6 * (table.radii[i] + table.radii[j]) {
+            counters.overlap_violations += 1;
+        }
+        if options.contact_rule == ContactRule::NearestNeighbour
+            && nearest[i].1 != p.j
+            && nearest[j].1 != p.i
+        {
+            continue;
+        }
+        let (ia, ib) = (table.ids[i], table.ids[j]);
+        let (a, b) = if ia < ib { (ia, ib) } else { (ib, ia) };
+        candidates.push((p.gap, a, b, k as u32));
+    }
+    // Deepest first, ties by (id_i, id_j): a total order, so the choice is deterministic.
+    candidates.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+    taken.clear();
+    taken.resize(count, false);
+    for &(gap, _, _, k) in candidates.iter() {
+        let p = table.pairs[k as usize];
+        let (i, j) = (p.i as usize, p.j as usize);
+        if taken[i] || taken[j] {
+            counters.deferred_contacts += 1;
+            continue;
+        }
+        taken[i] = true;
+        taken[j] = true;
+        // Orient the contact from the smaller id to the larger.
+        let (a, b, normal) = if table.ids[i] < table.ids[j] {
+            (i, j, p.d.normalize())
+        } else {
+            (j, i, -p.d.normalize())
+        };
+        contacts.contacts.push(Contact {
+            a: table.entities[a],
+            b: table.entities[b],
+            id_a: table.ids[a],
+            id_b: table.ids[b],
+            normal,
+            gap,
+        });
+    }
+}

@@ -1,0 +1,175 @@
+//! Stage 4 — fragmentation (MODEL.md §7, P04 §5).
+//!
+//! For every body that took part in an impact this step (a merged body counts the
+//! energy of both partners), with δK the kinetic energy it lost in the pair's
+//! centre-of-mass frame (frame-independent; P04 Remark 5.1 works in that frame),
+//! b0 its radius and V0 = (4/3)π b0³: x = δK b0 / (3 γ V0) (P04 (5.2)) and
+//! k = ⌊(1 + x)³⌋. It fragments when k ≥ 2 and n ≥ 2, into p = min(k, ⌊n⌋) equal
+//! spheres with equal shares of mass, momentum and primaries, the parent's
+//! velocity, placed around the parent's centre without overlapping each other.
+//! The surface energy of the p pieces, δZ = γ 4π b0² (p^{1/3} − 1) ≤ δK, is taken
+//! from their heat (P04 (6.8)). Pieces get new ids; the parent is despawned.
+//!
+//! Reads: [`ImpactRecords`] (after merging). Writes: despawns/spawns bodies,
+//! [`Counters`], [`EnergyLedger`], [`IdAllocator`], [`SimClock::bodies_reshaped`].
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+
+use crate::components::{
+    BodyState, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
+};
+use crate::resources::{
+    BoxGeometry, Counters, EnergyLedger, IdAllocator, ImpactRecords, MaterialConstants, SimClock,
+    StateChanged,
+};
+
+/// Number of equal pieces k = ⌊(1 + x)³⌋, x = δK / (4π γ b0²) (P04 (5.2)).
+pub fn piece_count(absorbed: f64, radius: f64, gamma: f64) -> u64 {
+    if !(gamma.is_finite() && absorbed > 0.0) {
+        return 1;
+    }
+    let x = absorbed / (4.0 * std::f64::consts::PI * gamma * radius * radius);
+    let k = (1.0 + x).powi(3).floor();
+    if k >= u64::MAX as f64 {
+        u64::MAX
+    } else {
+        k as u64
+    }
+}
+
+/// Surface energy δZ = γ 4π b0² (p^{1/3} − 1) of splitting a sphere of radius b0 into p [J].
+pub fn surface_energy(gamma: f64, radius: f64, pieces: u64) -> f64 {
+    gamma * 4.0 * std::f64::consts::PI * radius * radius * ((pieces as f64).cbrt() - 1.0)
+}
+
+/// Offsets of `count` pieces of radius `piece_radius` around a centre, pairwise
+/// non-overlapping (Fibonacci-sphere directions scaled so the closest pair just touches).
+pub fn piece_offsets(count: usize, piece_radius: f64) -> Vec<DVec3> {
+    if count <= 1 {
+        return vec![DVec3::ZERO; count];
+    }
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let dirs: Vec<DVec3> = (0..count)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / count as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = golden * i as f64;
+            DVec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect();
+    let mut closest = f64::INFINITY;
+    for i in 0..count {
+        for j in i + 1..count {
+            closest = closest.min(dirs[i].distance(dirs[j]));
+        }
+    }
+    // Slightly more than touching so rounding never makes the pieces overlap.
+    let scale = 2.0 * piece_radius * (1.0 + 1e-9) / closest;
+    dirs.into_iter().map(|d| d * scale).collect()
+}
+
+type FragmentQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static ParticleId,
+        &'static Position,
+        &'static Velocity,
+        &'static Mass,
+        &'static Radius,
+        &'static Temperature,
+        &'static Primaries,
+    ),
+    With<Particle>,
+>;
+
+/// The system.
+#[allow(clippy::too_many_arguments)]
+pub fn fragment_bodies(
+    records: Res<ImpactRecords>,
+    material: Res<MaterialConstants>,
+    geometry: Res<BoxGeometry>,
+    bodies: FragmentQuery,
+    mut ids: ResMut<IdAllocator>,
+    mut counters: ResMut<Counters>,
+    mut ledger: ResMut<EnergyLedger>,
+    mut clock: ResMut<SimClock>,
+    mut changed: ResMut<StateChanged>,
+    mut commands: Commands,
+) {
+    if records.records.is_empty() {
+        return;
+    }
+    // (stable id, entity, absorbed energy): a merged pair is one body (b despawned).
+    let mut absorbed: Vec<(u64, Entity, f64)> = Vec::with_capacity(2 * records.records.len());
+    for r in &records.records {
+        let merged = r.bonded && bodies.get(r.b).is_err();
+        if merged {
+            absorbed.push((r.id_a, r.a, r.lost_a + r.lost_b));
+        } else {
+            absorbed.push((r.id_a, r.a, r.lost_a));
+            absorbed.push((r.id_b, r.b, r.lost_b));
+        }
+    }
+    // Id allocation order must not depend on query order.
+    absorbed.sort_by_key(|x| x.0);
+    for (_, entity, energy) in absorbed {
+        let Ok((_, p, v, m, b, t, n)) = bodies.get(entity) else {
+            continue;
+        };
+        let k = piece_count(energy, b.0, material.gamma);
+        if k < 2 || n.0 < 2.0 {
+            continue;
+        }
+        let pieces = k.min(n.0.floor() as u64).max(2);
+        let dz = surface_energy(material.gamma, b.0, pieces);
+        let theta = t.0 - dz / (m.0 * material.heat_capacity);
+        let piece_mass = m.0 / pieces as f64;
+        let piece_radius = material.radius_of_mass(piece_mass);
+        for offset in piece_offsets(pieces as usize, piece_radius) {
+            let state = BodyState {
+                id: ids.allocate(),
+                position: geometry.wrap(p.0 + offset),
+                velocity: v.0,
+                mass: piece_mass,
+                radius: piece_radius,
+                temperature: theta,
+                hardness: material.hardness(theta),
+                primaries: n.0 / pieces as f64,
+            };
+            commands.spawn(state.bundle());
+        }
+        commands.entity(entity).despawn();
+        counters.fragmentations += 1;
+        counters.fragments_created += pieces;
+        ledger.fracture_energy += dz;
+        clock.bodies_reshaped = true;
+        changed.0 = true;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn surface_energy_never_exceeds_the_absorbed_energy() {
+        for &energy in &[1e-3, 1.0, 10.0, 1e3] {
+            let k = piece_count(energy, 1e-3, 1.0);
+            assert!(surface_energy(1.0, 1e-3, k) <= energy * (1.0 + 1e-12));
+        }
+    }
+
+    #[test]
+    fn pieces_do_not_overlap() {
+        for count in 2..40 {
+            let offsets = piece_offsets(count, 1.0);
+            for i in 0..count {
+                for j in i + 1..count {
+                    assert!(offsets[i].distance(offsets[j]) >= 2.0);
+                }
+            }
+        }
+    }
+}

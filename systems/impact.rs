@@ -1,0 +1,594 @@
+//! Stage 2 — the impact / heat solve (MODEL.md §5).
+//!
+//! For every contact of this step (in the order contact detection chose), solve
+//! the staggered fixed point e* = G(e*) of restitution, impact duration, contact
+//! area, impulsive force, friction, heating and thermal softening, then either
+//! bond the pair (common velocity, marked for merging) or bounce it with e*.
+//!
+//! Reads: [`ContactList`], [`MaterialConstants`], [`ImpactSettings`].
+//! Writes: velocities, temperatures, hardness and positions (a bouncing pair that
+//! overlaps is pushed apart to touching) of the pair; [`ImpactRecords`],
+//! [`Counters`], [`EnergyLedger`], [`StateChanged`].
+//!
+//! The solve itself is the plain function [`solve_pair`], free of ECS types, so it
+//! can be tested against the closed form of MODEL.md §14 and benchmarked alone.
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+
+use crate::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
+use crate::resources::{
+    BoxGeometry, ContactList, Counters, EnergyLedger, ImpactRecord, ImpactRecords, ImpactSettings,
+    MaterialConstants, StateChanged, hardness,
+};
+use crate::scenario::{DurationLaw, SolverKind};
+
+/// One body's state entering an impact.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairBody {
+    /// Mass [kg].
+    pub mass: f64,
+    /// Radius [m].
+    pub radius: f64,
+    /// Velocity [m/s].
+    pub velocity: DVec3,
+    /// Temperature [K].
+    pub temperature: f64,
+}
+
+/// Material and model constants the pair solve needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairModel {
+    pub a0: f64,
+    pub af: f64,
+    pub beta: f64,
+    pub duration: DurationLaw,
+    pub friction_scales_with_adhesion: bool,
+    /// μ0.
+    pub mu0: f64,
+    /// α [J/m²].
+    pub alpha: f64,
+    /// C [J/(kg K)].
+    pub heat_capacity: f64,
+    /// H0 [Pa].
+    pub h0: f64,
+    /// Q [J/mol].
+    pub activation_energy: f64,
+    /// Relative tolerance TOL of |e_{K+1} − e_K| ≤ TOL·e_K.
+    pub tol: f64,
+    /// Plain iterations before the fallback.
+    pub max_iterations: u32,
+    pub solver: SolverKind,
+}
+
+impl PairModel {
+    pub fn new(material: &MaterialConstants, settings: &ImpactSettings) -> Self {
+        Self {
+            a0: settings.a0,
+            af: settings.af,
+            beta: settings.beta,
+            duration: settings.duration,
+            friction_scales_with_adhesion: settings.friction_scales_with_adhesion,
+            mu0: material.mu0,
+            alpha: material.alpha,
+            heat_capacity: material.heat_capacity,
+            h0: material.h0,
+            activation_energy: material.activation_energy,
+            tol: settings.tol,
+            max_iterations: settings.max_iterations,
+            solver: settings.solver,
+        }
+    }
+}
+
+/// Everything G(e) computes for one trial restitution e.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Trial {
+    /// G(e).
+    pub g: f64,
+    pub velocity_i: DVec3,
+    pub velocity_j: DVec3,
+    pub temperature_i: f64,
+    pub temperature_j: f64,
+    /// Kinetic energy lost by the pair W [J].
+    pub dissipated: f64,
+    /// Reaction heat per body R_c = α a_c [J].
+    pub reaction_heat: f64,
+    /// Contact area a_c [m²].
+    pub contact_area: f64,
+}
+
+/// How the fixed point was found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolveMethod {
+    /// The papers' iteration converged.
+    FixedPoint,
+    /// The iteration failed; the bracketed (Illinois) solve found the root.
+    Fallback,
+    /// Solver `plain` and the iteration failed: the last iterate is used.
+    Unconverged,
+}
+
+/// Result of one pair solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairOutcome {
+    /// Restitution e* (0 when bonded).
+    pub restitution: f64,
+    pub bonded: bool,
+    pub velocity_i: DVec3,
+    pub velocity_j: DVec3,
+    pub temperature_i: f64,
+    pub temperature_j: f64,
+    /// Kinetic energy lost by the pair [J].
+    pub dissipated: f64,
+    /// Reaction heat added to the pair, 2 α a_c [J].
+    pub reaction_heat: f64,
+    /// Kinetic energy each body lost in the pair's centre-of-mass frame [J].
+    pub lost_i: f64,
+    pub lost_j: f64,
+    /// Plain fixed-point iterations used.
+    pub iterations: u32,
+    /// Bracketed iterations used (0 without fallback).
+    pub fallback_iterations: u32,
+    pub method: SolveMethod,
+}
+
+/// Evaluate G(e) (MODEL.md §5, steps 1–7). `normal` is the unit vector from i to j;
+/// the pair must be approaching: (v_i − v_j)·n > 0.
+pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: f64) -> Trial {
+    let (mi, mj) = (bi.mass, bj.mass);
+    let vin = bi.velocity.dot(normal);
+    let vjn = bj.velocity.dot(normal);
+    let vti = bi.velocity - vin * normal;
+    let vtj = bj.velocity - vjn * normal;
+    let closing = vin - vjn;
+
+    // 1. normal velocities (P04 (2.4), (2.5))
+    let vin_new = (mi * vin + mj * (vjn - e * closing)) / (mi + mj);
+    let vjn_new = vin_new + e * closing;
+
+    // 2. impact duration
+    let bmin = bi.radius.min(bj.radius);
+    let duration = match model.duration {
+        DurationLaw::P04 => (1.0 + e) * model.beta * bmin / (0.5 * closing),
+        DurationLaw::P02 => 2.0 * model.beta * bmin / ((1.0 + e) * closing.abs()),
+    };
+
+    // 3. contact area (P04 (4.12))
+    let contact_area =
+        (model.a0 + (model.af - model.a0) * (1.0 - e)) * std::f64::consts::PI * bmin * bmin;
+
+    // 4. mean impulsive force
+    let normal_impulse = mi * (vin_new - vin).abs();
+    let force = normal_impulse / duration;
+
+    // 5. friction, capped so the tangential relative velocity is not reversed
+    let mu = if model.friction_scales_with_adhesion {
+        model.mu0 * (1.0 - e)
+    } else {
+        model.mu0
+    };
+    let slip = vti - vtj;
+    let slip_speed = slip.length();
+    let (mut vti_new, mut vtj_new) = (vti, vtj);
+    if slip_speed > 0.0 && mu > 0.0 {
+        let reduced = mi * mj / (mi + mj);
+        let jt = (mu * force * duration).min(slip_speed * reduced);
+        let t_hat = slip / slip_speed;
+        vti_new -= (jt / mi) * t_hat;
+        vtj_new += (jt / mj) * t_hat;
+    }
+    let velocity_i = vin_new * normal + vti_new;
+    let velocity_j = vjn_new * normal + vtj_new;
+
+    // 6. heat: W split equally, reaction heat R_c to each body (P02 (14)–(17))
+    let ke = |m: f64, v: DVec3| 0.5 * m * v.length_squared();
+    let dissipated =
+        (ke(mi, bi.velocity) + ke(mj, bj.velocity) - ke(mi, velocity_i) - ke(mj, velocity_j))
+            .max(0.0);
+    let reaction_heat = model.alpha * contact_area;
+    let c = model.heat_capacity;
+    let temperature_i = bi.temperature + dissipated / (2.0 * mi * c) + reaction_heat / (mi * c);
+    let temperature_j = bj.temperature + dissipated / (2.0 * mj * c) + reaction_heat / (mj * c);
+    let hi = hardness(model.h0, model.activation_energy, temperature_i);
+    let hj = hardness(model.h0, model.activation_energy, temperature_j);
+
+    // 7. G(e) = max(1 − Ī / (2 a_c min H), 0), never forming 0·∞
+    let h = hi.min(hj);
+    let g = if h.is_infinite() {
+        1.0
+    } else if contact_area <= 0.0 {
+        0.0
+    } else {
+        (1.0 - force / (2.0 * contact_area * h)).max(0.0)
+    };
+
+    Trial {
+        g,
+        velocity_i,
+        velocity_j,
+        temperature_i,
+        temperature_j,
+        dissipated,
+        reaction_heat,
+        contact_area,
+    }
+}
+
+/// Converged when |e_{K+1} − e_K| ≤ TOL·e_K, with an absolute floor so that e = 0 converges.
+#[inline]
+fn converged(tol: f64, previous: f64, next: f64) -> bool {
+    (next - previous).abs() <= tol * previous.abs().max(next.abs()) + ABSOLUTE_FLOOR
+}
+
+/// Absolute floor of the convergence test on e ∈ [0, 1].
+pub const ABSOLUTE_FLOOR: f64 = 1e-15;
+
+/// Result of finding e* alone (no velocities).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixedPoint {
+    pub e: f64,
+    pub iterations: u32,
+    pub fallback_iterations: u32,
+    pub method: SolveMethod,
+}
+
+/// Find the fixed point e* = G(e*) on [0, 1]: the papers' iteration from e0 = 0 first,
+/// then (solver `safeguarded`) the Illinois method on F(e) = e − G(e) over the bracket
+/// narrowed by the iterates, when the iteration has not converged after
+/// `max_iterations` or stops contracting.
+pub fn find_fixed_point(model: &PairModel, g: impl Fn(f64) -> f64) -> FixedPoint {
+    // Bracket of the root of F(e) = e − G(e): F(lo) ≤ 0 ≤ F(hi).
+    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+    let mut e = 0.0_f64;
+    let mut last_step = f64::INFINITY;
+    let mut stalled = 0u32;
+    let mut iterations = 0u32;
+    while iterations < model.max_iterations {
+        let next = g(e);
+        iterations += 1;
+        if converged(model.tol, e, next) {
+            return FixedPoint {
+                e: next,
+                iterations,
+                fallback_iterations: 0,
+                method: SolveMethod::FixedPoint,
+            };
+        }
+        // F(e) = e − G(e) = e − next tells which side of the root e lies on.
+        if next > e {
+            lo = lo.max(e);
+        } else {
+            hi = hi.min(e);
+        }
+        let step = (next - e).abs();
+        // Not contracting (|G'| ≥ 1 near e*: e.g. the 2-cycle at a0 = 0): give up early.
+        stalled = if step >= 0.999 * last_step {
+            stalled + 1
+        } else {
+            0
+        };
+        last_step = step;
+        e = next;
+        if stalled >= 3 && model.solver == SolverKind::Safeguarded {
+            break;
+        }
+    }
+    if model.solver == SolverKind::Plain {
+        return FixedPoint {
+            e,
+            iterations,
+            fallback_iterations: 0,
+            method: SolveMethod::Unconverged,
+        };
+    }
+    let (root, fallback_iterations) = illinois(|x| x - g(x), lo, hi, model.tol);
+    FixedPoint {
+        e: root,
+        iterations,
+        fallback_iterations,
+        method: SolveMethod::Fallback,
+    }
+}
+
+/// Illinois (modified regula falsi) on [lo, hi] with f(lo) ≤ 0 ≤ f(hi); falls back to
+/// bisection steps when it stagnates. Returns the root and the iterations used.
+fn illinois(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64, tol: f64) -> (f64, u32) {
+    let mut f_lo = f(lo);
+    let mut f_hi = f(hi);
+    if f_lo == 0.0 {
+        return (lo, 1);
+    }
+    if f_hi == 0.0 {
+        return (hi, 1);
+    }
+    // The bracket is guaranteed by F(0) ≤ 0 ≤ F(1); guard against a bracket the
+    // iterates mislabelled through rounding by restoring the full interval.
+    if f_lo > 0.0 || f_hi < 0.0 {
+        lo = 0.0;
+        hi = 1.0;
+        f_lo = f(lo);
+        f_hi = f(hi);
+        if f_lo >= 0.0 {
+            return (lo, 1);
+        }
+        if f_hi <= 0.0 {
+            return (hi, 1);
+        }
+    }
+    let mut side = 0i8;
+    let mut iterations = 0u32;
+    while iterations < 200 {
+        iterations += 1;
+        let width = hi - lo;
+        if width <= tol * hi.abs() + ABSOLUTE_FLOOR {
+            break;
+        }
+        let mut x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+        // Keep the secant point strictly inside; bisect every 8th iteration for safety.
+        if !(x > lo && x < hi) || iterations % 8 == 0 {
+            x = 0.5 * (lo + hi);
+        }
+        let fx = f(x);
+        if fx == 0.0 {
+            return (x, iterations);
+        }
+        if fx < 0.0 {
+            lo = x;
+            f_lo = fx;
+            if side == -1 {
+                f_hi *= 0.5;
+            }
+            side = -1;
+        } else {
+            hi = x;
+            f_hi = fx;
+            if side == 1 {
+                f_lo *= 0.5;
+            }
+            side = 1;
+        }
+    }
+    // The smaller-|F| end of the final bracket.
+    let root = if f_lo.abs() <= f_hi.abs() { lo } else { hi };
+    (root, iterations)
+}
+
+/// Solve one impact (MODEL.md §5): the fixed point, then bond (e* = 0) or bounce.
+pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3) -> PairOutcome {
+    let fp = find_fixed_point(model, |e| trial(model, bi, bj, normal, e).g);
+    let (mi, mj) = (bi.mass, bj.mass);
+    let total = mi + mj;
+    let v_cm = (mi * bi.velocity + mj * bj.velocity) / total;
+    let lost = |m: f64, before: DVec3, after: DVec3| {
+        (0.5 * m * ((before - v_cm).length_squared() - (after - v_cm).length_squared())).max(0.0)
+    };
+    let bonded = fp.e <= 0.0;
+    let outcome = if bonded {
+        // Bond: common velocity, all relative kinetic energy becomes heat (plus reaction heat at e = 0).
+        let at_zero = trial(model, bi, bj, normal, 0.0);
+        let dissipated = (0.5 * mi * bi.velocity.length_squared()
+            + 0.5 * mj * bj.velocity.length_squared()
+            - 0.5 * total * v_cm.length_squared())
+        .max(0.0);
+        let c = model.heat_capacity;
+        let rc = at_zero.reaction_heat;
+        PairOutcome {
+            restitution: 0.0,
+            bonded: true,
+            velocity_i: v_cm,
+            velocity_j: v_cm,
+            temperature_i: bi.temperature + dissipated / (2.0 * mi * c) + rc / (mi * c),
+            temperature_j: bj.temperature + dissipated / (2.0 * mj * c) + rc / (mj * c),
+            dissipated,
+            reaction_heat: 2.0 * rc,
+            lost_i: lost(mi, bi.velocity, v_cm),
+            lost_j: lost(mj, bj.velocity, v_cm),
+            iterations: fp.iterations,
+            fallback_iterations: fp.fallback_iterations,
+            method: fp.method,
+        }
+    } else {
+        let t = trial(model, bi, bj, normal, fp.e);
+        PairOutcome {
+            restitution: fp.e,
+            bonded: false,
+            velocity_i: t.velocity_i,
+            velocity_j: t.velocity_j,
+            temperature_i: t.temperature_i,
+            temperature_j: t.temperature_j,
+            dissipated: t.dissipated,
+            reaction_heat: 2.0 * t.reaction_heat,
+            lost_i: lost(mi, bi.velocity, t.velocity_i),
+            lost_j: lost(mj, bj.velocity, t.velocity_j),
+            iterations: fp.iterations,
+            fallback_iterations: fp.fallback_iterations,
+            method: fp.method,
+        }
+    };
+    outcome
+}
+
+/// Closed-form restitution for two identical spheres head on without softening
+/// (MODEL.md §14): λ = 2 ρ v_p² / (3 H β), each approaching at speed v_p.
+pub fn closed_form_restitution(a0: f64, af: f64, lambda: f64) -> f64 {
+    if lambda >= af {
+        return 0.0;
+    }
+    if af == a0 {
+        // G(e) = 1 − λ/af does not depend on e.
+        return 1.0 - lambda / af;
+    }
+    ((2.0 * af - a0) - (a0 * a0 + 4.0 * lambda * (af - a0)).sqrt()) / (2.0 * (af - a0))
+}
+
+/// Critical approach speed of each of two identical spheres for bonding,
+/// v_p = √(3 af H β / (2ρ)) (P04 (4.15)) [m/s].
+pub fn critical_speed(af: f64, hardness: f64, beta: f64, rho: f64) -> f64 {
+    (3.0 * af * hardness * beta / (2.0 * rho)).sqrt()
+}
+
+type ImpactQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static mut Position,
+        &'static mut Velocity,
+        &'static Mass,
+        &'static Radius,
+        &'static mut Temperature,
+        &'static mut Hardness,
+    ),
+    With<Particle>,
+>;
+
+/// The system: resolve every contact of [`ContactList`] in order.
+#[allow(clippy::too_many_arguments)]
+pub fn resolve_impacts(
+    contacts: Res<ContactList>,
+    material: Res<MaterialConstants>,
+    settings: Res<ImpactSettings>,
+    geometry: Res<BoxGeometry>,
+    mut bodies: ImpactQuery,
+    mut records: ResMut<ImpactRecords>,
+    mut counters: ResMut<Counters>,
+    mut ledger: ResMut<EnergyLedger>,
+    mut changed: ResMut<StateChanged>,
+) {
+    records.records.clear();
+    if contacts.contacts.is_empty() {
+        return;
+    }
+    let model = PairModel::new(&material, &settings);
+    for contact in &contacts.contacts {
+        let Ok([a, b]) = bodies.get_many_mut([contact.a, contact.b]) else {
+            continue;
+        };
+        let (mut pa, mut va, ma, ra, mut ta, mut ha) = a;
+        let (mut pb, mut vb, mb, rb, mut tb, mut hb) = b;
+        let body_a = PairBody {
+            mass: ma.0,
+            radius: ra.0,
+            velocity: va.0,
+            temperature: ta.0,
+        };
+        let body_b = PairBody {
+            mass: mb.0,
+            radius: rb.0,
+            velocity: vb.0,
+            temperature: tb.0,
+        };
+        let out = solve_pair(&model, &body_a, &body_b, contact.normal);
+        va.0 = out.velocity_i;
+        vb.0 = out.velocity_j;
+        ta.0 = out.temperature_i;
+        tb.0 = out.temperature_j;
+        ha.0 = material.hardness(ta.0);
+        hb.0 = material.hardness(tb.0);
+
+        if !out.bonded {
+            // Push an overlapping pair apart along n to touching; the centre of mass stays.
+            let d = geometry.min_image(pb.0 - pa.0);
+            let overlap = ra.0 + rb.0 - d.length();
+            if overlap > 0.0 {
+                let total = ma.0 + mb.0;
+                pa.0 = geometry.wrap(pa.0 - contact.normal * (overlap * mb.0 / total));
+                pb.0 = geometry.wrap(pb.0 + contact.normal * (overlap * ma.0 / total));
+            }
+        }
+
+        counters.impacts += 1;
+        if out.bonded {
+            counters.bonds += 1;
+        } else {
+            counters.bounces += 1;
+        }
+        counters.fixed_point_iterations += u64::from(out.iterations);
+        counters.fallback_iterations += u64::from(out.fallback_iterations);
+        match out.method {
+            SolveMethod::FixedPoint => {}
+            SolveMethod::Fallback => counters.fallbacks += 1,
+            SolveMethod::Unconverged => counters.unconverged += 1,
+        }
+        ledger.reaction_heat += out.reaction_heat;
+        ledger.impact_dissipation += out.dissipated;
+        records.records.push(ImpactRecord {
+            a: contact.a,
+            b: contact.b,
+            id_a: contact.id_a,
+            id_b: contact.id_b,
+            normal: contact.normal,
+            bonded: out.bonded,
+            lost_a: out.lost_i,
+            lost_b: out.lost_j,
+        });
+    }
+    changed.0 = true;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model(a0: f64, af: f64, beta: f64) -> PairModel {
+        PairModel {
+            a0,
+            af,
+            beta,
+            duration: DurationLaw::P04,
+            friction_scales_with_adhesion: false,
+            mu0: 0.0,
+            alpha: 0.0,
+            heat_capacity: 1000.0,
+            h0: 1e6,
+            activation_energy: 0.0,
+            tol: 1e-12,
+            max_iterations: 100,
+            solver: SolverKind::Safeguarded,
+        }
+    }
+
+    fn sphere(radius: f64, rho: f64, v: DVec3) -> PairBody {
+        PairBody {
+            mass: 4.0 / 3.0 * std::f64::consts::PI * radius.powi(3) * rho,
+            radius,
+            velocity: v,
+            temperature: 300.0,
+        }
+    }
+
+    #[test]
+    fn a0_zero_oscillates_and_the_fallback_finds_the_root() {
+        // λ = 0.5 < af = 1: the plain iteration cycles 0 ↔ 1 − λ forever (MODEL.md §5).
+        let m = model(0.0, 1.0, 1.0);
+        let rho = 2000.0;
+        let vp = (0.5 * 3.0 * m.h0 * m.beta / (2.0 * rho)).sqrt();
+        let (bi, bj) = (
+            sphere(1e-3, rho, DVec3::X * vp),
+            sphere(1e-3, rho, -DVec3::X * vp),
+        );
+        let out = solve_pair(&m, &bi, &bj, DVec3::X);
+        assert_eq!(out.method, SolveMethod::Fallback);
+        let expected = closed_form_restitution(0.0, 1.0, 0.5);
+        assert!(
+            (out.restitution - expected).abs() < 1e-9,
+            "{} vs {expected}",
+            out.restitution
+        );
+    }
+
+    #[test]
+    fn infinite_hardness_gives_full_rebound_without_nan() {
+        let mut m = model(0.0, 1.0, 1.0);
+        m.activation_energy = 1e6; // Q/(Rθ) ≈ 400 at 300 K → still finite; push higher:
+        m.h0 = 1e6;
+        let mut bi = sphere(1e-3, 2000.0, DVec3::X * 10.0);
+        let mut bj = sphere(1e-3, 2000.0, -DVec3::X * 10.0);
+        bi.temperature = 100.0; // Q/(Rθ) ≈ 1203 > 700 → H = ∞
+        bj.temperature = 100.0;
+        let out = solve_pair(&m, &bi, &bj, DVec3::X);
+        assert_eq!(out.restitution, 1.0);
+        assert!(out.velocity_i.is_finite() && out.velocity_j.is_finite());
+        assert!((out.velocity_i.x + 10.0).abs() < 1e-12);
+    }
+}

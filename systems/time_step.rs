@@ -1,0 +1,132 @@
+//! Stage 5 — the next time-step size (MODEL.md §4, P04 (6.14) made exact).
+//!
+//! Runs after impacts, merging and fragmentation so that t_c is computed from the
+//! post-impact velocities and the current bodies: that is what makes "no collision
+//! missed for c ≤ 1" hold. (MODEL.md §3 lists the step size under contact detection;
+//! computing it there would use pre-impact velocities.) When nothing changed this
+//! step, contact detection's neighbour table is reused; otherwise it is rebuilt.
+//!
+//! Adaptive: Δt = clamp(c·t_c, Δt_min, min(Δt_max, skin / (2 v_max))), t_c the exact
+//! ballistic time to the next contact among neighbour pairs (0 for a touching,
+//! approaching pair deferred to the next step), v_max the largest speed relative to
+//! the mass-weighted mean velocity. Fixed: Δt as given. Both end exactly on T.
+//!
+//! Reads: [`NeighbourTable`], [`StepControl`], [`StateChanged`]. Writes: [`SimClock`]
+//! (dt, clamped flag), [`Counters`] (clamped steps).
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+
+use super::contact::{BodyQuery, NeighbourTable, search_margin};
+use crate::resources::{BoxGeometry, Counters, SimClock, StateChanged, StepControl};
+
+/// Smallest t ≥ 0 with |d + u t| = s, for separation d = r_j − r_i, relative velocity
+/// u = v_j − v_i and contact distance s = b_i + b_j; `None` if the pair never touches.
+/// Uses the cancellation-free root c / (−b + √(b² − a c)).
+pub fn time_to_contact(d: DVec3, u: DVec3, s: f64) -> Option<f64> {
+    let b = d.dot(u);
+    if b >= 0.0 {
+        return None; // not approaching
+    }
+    let c = d.length_squared() - s * s;
+    if c <= 0.0 {
+        return Some(0.0); // already touching
+    }
+    let a = u.length_squared();
+    let disc = b * b - a * c;
+    if disc < 0.0 {
+        return None; // passes by
+    }
+    Some(c / (-b + disc.sqrt()))
+}
+
+/// The system.
+pub fn choose_time_step(
+    bodies: BodyQuery,
+    geometry: Res<BoxGeometry>,
+    control: Res<StepControl>,
+    changed: Res<StateChanged>,
+    mut table: ResMut<NeighbourTable>,
+    mut clock: ResMut<SimClock>,
+    mut counters: ResMut<Counters>,
+) {
+    let remaining = (clock.end - clock.time).max(0.0);
+    clock.clamped_at_min = false;
+    let dt = match *control {
+        StepControl::Fixed { dt } => dt,
+        StepControl::Adaptive {
+            step_factor,
+            dt_min,
+            dt_max,
+            skin,
+        } => {
+            if changed.0 {
+                let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
+                table.rebuild(&bodies, &geometry, search_margin(&control, max_radius));
+            }
+            let t_c = next_contact_time(&table);
+            let v_max = max_relative_speed(&table);
+            let upper = if v_max > 0.0 {
+                dt_max.min(skin / (2.0 * v_max))
+            } else {
+                dt_max
+            };
+            let wanted = step_factor * t_c;
+            if wanted < dt_min && dt_min <= upper {
+                clock.clamped_at_min = true;
+                counters.clamped_steps += 1;
+            }
+            // Not `f64::clamp`: the skin bound wins if it is below Δt_min.
+            wanted.max(dt_min).min(upper)
+        }
+    };
+    clock.dt = dt.min(remaining);
+}
+
+/// Smallest exact time to contact over approaching neighbour pairs [s] (∞ if none).
+pub fn next_contact_time(table: &NeighbourTable) -> f64 {
+    let mut t_c = f64::INFINITY;
+    for p in &table.pairs {
+        let (i, j) = (p.i as usize, p.j as usize);
+        let u = table.velocities[j] - table.velocities[i];
+        if let Some(t) = time_to_contact(p.d, u, table.radii[i] + table.radii[j]) {
+            t_c = t_c.min(t);
+        }
+    }
+    t_c
+}
+
+/// Largest |v − v̄| with v̄ the mass-weighted mean velocity [m/s].
+pub fn max_relative_speed(table: &NeighbourTable) -> f64 {
+    let mut momentum = DVec3::ZERO;
+    let mut mass = 0.0;
+    for (m, v) in table.masses.iter().zip(&table.velocities) {
+        momentum += *m * *v;
+        mass += m;
+    }
+    if mass <= 0.0 {
+        return 0.0;
+    }
+    let mean = momentum / mass;
+    table
+        .velocities
+        .iter()
+        .map(|v| (*v - mean).length())
+        .fold(0.0, f64::max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn head_on_time_to_contact_is_gap_over_closing_speed() {
+        let t = time_to_contact(DVec3::new(3.0, 0.0, 0.0), DVec3::new(-2.0, 0.0, 0.0), 1.0);
+        assert!((t.unwrap() - 1.0).abs() < 1e-15);
+        assert_eq!(time_to_contact(DVec3::X * 3.0, DVec3::X, 1.0), None);
+        assert_eq!(
+            time_to_contact(DVec3::X * 3.0, DVec3::new(-1.0, 5.0, 0.0), 1.0),
+            None
+        );
+    }
+}
