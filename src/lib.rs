@@ -21,6 +21,7 @@
 //!
 //! All quantities are SI and `f64`.
 
+pub mod charts;
 pub mod cloud;
 pub mod components;
 pub mod error;
