@@ -296,7 +296,7 @@ pub struct InvariantReport {
     pub max_mass_error: f64,
     /// Worst |P − P0| / Σ m|v|.
     pub max_momentum_error: f64,
-    /// Worst |E − E0 − ledger| / E0.
+    /// Worst |E − E0 − ledger| / (E0 + Σ|ledger terms|).
     pub max_energy_error: f64,
     /// First few violations, human readable.
     pub violations: Vec<String>,

@@ -255,7 +255,9 @@ fn default_dt_max() -> f64 {
     1e-3
 }
 fn default_skin() -> f64 {
-    1.0
+    // Measured on paper2004_best: 0.25 b0 → 2090 steps, 0.5 → 1712, 1.0 → 1586, but the
+    // cell search grows as (2 + skin)³: 0.5 b0 is the fastest (identical results for all).
+    0.5
 }
 
 impl Default for Stepping {

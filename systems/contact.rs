@@ -83,6 +83,24 @@ impl NeighbourTable {
         );
     }
 
+    /// Refresh positions and velocities in place (same bodies, same pairs): used when
+    /// impacts changed velocities and nudged overlapping pairs apart, but no body was
+    /// added, removed or resized. Pairs pushed from just outside the margin to just
+    /// inside it (by at most an overlap, ~1e-9 b) are not added; they are met next step.
+    pub fn refresh(&mut self, bodies: &BodyQuery, geometry: &BoxGeometry) {
+        for k in 0..self.entities.len() {
+            if let Ok((_, _, p, v, _, _)) = bodies.get(self.entities[k]) {
+                self.positions[k] = p.0;
+                self.velocities[k] = v.0;
+            }
+        }
+        for pair in &mut self.pairs {
+            let (i, j) = (pair.i as usize, pair.j as usize);
+            pair.d = geometry.min_image(self.positions[j] - self.positions[i]);
+            pair.gap = pair.d.length() - self.radii[i] - self.radii[j];
+        }
+    }
+
     /// Closing speed w = (v_i − v_j)·n of a pair (> 0 when approaching).
     #[inline]
     pub fn closing_speed(&self, p: &NearPair) -> f64 {

@@ -83,7 +83,9 @@ impl CoolingLaw {
             if !(next > lo && next < hi) {
                 next = 0.5 * (lo + hi);
             }
-            if (next - t).abs() <= 1e-14 * next.abs() {
+            // Newton on this residual has |f''/(2 f')| ≤ 1.5/θ, so once a correction is
+            // below 1e-8 θ the remaining error is below ~1.5e-16 θ: stop here.
+            if (next - t).abs() <= 1e-8 * next.abs() {
                 return next;
             }
             t = next;

@@ -4,8 +4,9 @@
 //!
 //! Bodies are binned into a *hierarchy* of periodic cell grids: level k has cells
 //! at least h0·2^k wide, h0 = 2 b_min + margin, and a body sits at the lowest level
-//! whose cells are at least 2b + margin wide. A body searches its own level (27
-//! cells) and every lower level (a window wide enough for its radius), so an
+//! whose cells are at least 2b + margin wide. A body searches its own level (half
+//! shell of 14 cells) and every coarser level (27 cells, since those cells are
+//! sized for the coarser level's largest body), so an
 //! agglomerate that grows to hundreds of grains — even past half the box — is
 //! still found by its neighbours, and never by itself. A level with fewer than
 //! three cells per side is scanned whole, using the minimum image.
@@ -14,8 +15,7 @@
 
 use glam::DVec3;
 
-/// One pair within the margin: indices i < j into the input arrays (or, across
-/// levels, i is the larger body), `d` = minimum image of r_j − r_i, `gap` = |d| − b_i − b_j.
+/// One pair within the margin: indices into the input arrays, in either order, `d` = minimum image of r_j − r_i, `gap` = |d| − b_i − b_j.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NearPair {
     pub i: u32,
@@ -137,19 +137,34 @@ impl NeighbourGrid {
             std::mem::swap(&mut level.members, &mut level.sorted);
         }
 
-        let min_image = |d: DVec3| d - side * (d / side).round();
+        // Positions lie in [−D, D), so every component of a difference lies in (−2D, 2D):
+        // one conditional shift is the minimum image (much cheaper than `round`).
+        let half = half_width;
+        let wrap1 = |x: f64| {
+            if x > half {
+                x - side
+            } else if x < -half {
+                x + side
+            } else {
+                x
+            }
+        };
+        let min_image = |d: DVec3| DVec3::new(wrap1(d.x), wrap1(d.y), wrap1(d.z));
         for i in 0..count {
             let ki = self.level_of[i] as usize;
             let ri = positions[i];
             let bi = radii[i];
-            for (kl, level) in self.levels.iter().enumerate().take(ki + 1) {
+            // Search this level and the coarser ones: a level's cells are sized for its own
+            // largest body, so a smaller body needs only a 27-cell window there.
+            for (kl, level) in self.levels.iter().enumerate().skip(ki) {
                 if level.members.is_empty() {
                     continue;
                 }
                 let same_level = kl == ki;
-                let mut visit = |j: u32| {
+                // `only_after`: within one level, report each pair from its lower index only.
+                let mut visit = |j: u32, only_after: bool| {
                     let ju = j as usize;
-                    if ju == i || (same_level && ju < i) {
+                    if ju == i || (only_after && ju < i) {
                         return;
                     }
                     let d = min_image(positions[ju] - ri);
@@ -171,24 +186,40 @@ impl NeighbourGrid {
                 let s = (reach / level.width).ceil() as usize;
                 if 2 * s + 1 >= n {
                     for &j in &level.members {
-                        visit(j);
+                        visit(j, same_level);
                     }
                     continue;
                 }
                 let c = cell_coords(ri, half_width, level.width, n);
-                let s = s as isize;
                 let ni = n as isize;
-                for dz in -s..=s {
+                let cell_at = |dx: isize, dy: isize, dz: isize| {
+                    let x = (c[0] as isize + dx).rem_euclid(ni) as usize;
+                    let y = (c[1] as isize + dy).rem_euclid(ni) as usize;
                     let z = (c[2] as isize + dz).rem_euclid(ni) as usize;
+                    (z * n + y) * n + x
+                };
+                let members_of = |cell: usize| {
+                    &level.members[level.start[cell] as usize..level.start[cell + 1] as usize]
+                };
+                if same_level && s == 1 {
+                    // Half shell: the own cell (higher indices only) and 13 forward neighbours,
+                    // so each pair of this level is met once, from one side.
+                    for &j in members_of(cell_at(0, 0, 0)) {
+                        visit(j, true);
+                    }
+                    for &(dx, dy, dz) in &HALF_SHELL {
+                        for &j in members_of(cell_at(dx, dy, dz)) {
+                            visit(j, false);
+                        }
+                    }
+                    continue;
+                }
+                let s = s as isize;
+                for dz in -s..=s {
                     for dy in -s..=s {
-                        let y = (c[1] as isize + dy).rem_euclid(ni) as usize;
                         for dx in -s..=s {
-                            let x = (c[0] as isize + dx).rem_euclid(ni) as usize;
-                            let cell = (z * n + y) * n + x;
-                            let (a, b) =
-                                (level.start[cell] as usize, level.start[cell + 1] as usize);
-                            for &j in &level.members[a..b] {
-                                visit(j);
+                            for &j in members_of(cell_at(dx, dy, dz)) {
+                                visit(j, same_level);
                             }
                         }
                     }
@@ -197,6 +228,23 @@ impl NeighbourGrid {
         }
     }
 }
+
+/// The 13 neighbour offsets "after" the own cell in (z, y, x) order.
+const HALF_SHELL: [(isize, isize, isize); 13] = [
+    (1, 0, 0),
+    (-1, 1, 0),
+    (0, 1, 0),
+    (1, 1, 0),
+    (-1, -1, 1),
+    (0, -1, 1),
+    (1, -1, 1),
+    (-1, 0, 1),
+    (0, 0, 1),
+    (1, 0, 1),
+    (-1, 1, 1),
+    (0, 1, 1),
+    (1, 1, 1),
+];
 
 #[inline]
 fn cell_coords(r: DVec3, half_width: f64, width: f64, n: usize) -> [usize; 3] {

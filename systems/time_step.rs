@@ -4,7 +4,8 @@
 //! post-impact velocities and the current bodies: that is what makes "no collision
 //! missed for c ≤ 1" hold. (MODEL.md §3 lists the step size under contact detection;
 //! computing it there would use pre-impact velocities.) When nothing changed this
-//! step, contact detection's neighbour table is reused; otherwise it is rebuilt.
+//! step, contact detection's neighbour table is reused; after bounces only, its
+//! positions and velocities are refreshed; after merging or fragmentation it is rebuilt.
 //!
 //! Adaptive: Δt = clamp(c·t_c, Δt_min, min(Δt_max, skin / (2 v_max))), t_c the exact
 //! ballistic time to the next contact among neighbour pairs (0 for a touching,
@@ -60,9 +61,11 @@ pub fn choose_time_step(
             dt_max,
             skin,
         } => {
-            if changed.0 {
+            if clock.bodies_reshaped {
                 let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
                 table.rebuild(&bodies, &geometry, search_margin(&control, max_radius));
+            } else if changed.0 {
+                table.refresh(&bodies, &geometry);
             }
             let t_c = next_contact_time(&table);
             let v_max = max_relative_speed(&table);

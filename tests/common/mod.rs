@@ -1,0 +1,45 @@
+//! Helpers shared by the integration tests: scenarios built from JSON snippets.
+#![allow(dead_code)]
+
+use agglo::prelude::*;
+use serde_json::{Value, json};
+
+/// A scenario with sensible defaults; `patch` is merged over it (objects merge, other values replace).
+pub fn scenario(patch: Value) -> Scenario {
+    let mut base = json!({
+        "name": "test",
+        "seed": 1,
+        "box": { "half_width": 0.01 },
+        "cloud": { "count": 2, "radius": 0.001, "v_rel": [0, 0, 0] },
+        "material": { "rho": 2000, "H0": 1e4, "C": 1000, "theta0": 300 },
+        "impact": { "a0": 0.5, "af": 1.0, "beta": 1.0 },
+        "time": { "end": 0.002 }
+    });
+    merge(&mut base, patch);
+    Scenario::from_value(base).expect("test scenario is valid")
+}
+
+/// Deep-merge `patch` into `base`.
+pub fn merge(base: &mut Value, patch: Value) {
+    match (base, patch) {
+        (Value::Object(b), Value::Object(p)) => {
+            for (k, v) in p {
+                merge(b.entry(k).or_insert(Value::Null), v);
+            }
+        }
+        (b, p) => *b = p,
+    }
+}
+
+/// Two bodies on the x axis: `left` primaries at x = −gap_half − ..., moving with the given velocities.
+pub fn pair(x_left: f64, v_left: f64, x_right: f64, v_right: f64) -> Value {
+    json!({
+        "cloud": {
+            "count": 2,
+            "bodies": [
+                { "position": [x_left, 0, 0], "velocity": [v_left, 0, 0] },
+                { "position": [x_right, 0, 0], "velocity": [v_right, 0, 0] }
+            ]
+        }
+    })
+}
