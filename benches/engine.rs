@@ -1,1 +1,117 @@
-fn main() {}
+//! Engine speed (issue 2): the P04 best case end to end, a dilute cloud's
+//! particle-step throughput at N = 100 000, and the pair solve alone.
+//!
+//! Run: `cargo bench --bench engine`. Figures are reported in the issue notes and README.
+
+use std::path::Path;
+use std::time::Duration;
+
+use agglo::prelude::*;
+use agglo::scenario::{CoolingMethod, Stepping};
+use agglo::systems::impact::{PairBody, PairModel, solve_pair};
+use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use glam::DVec3;
+
+fn load(name: &str) -> Scenario {
+    Scenario::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenarios")
+            .join(name),
+    )
+    .expect("shipped scenario")
+}
+
+fn paper2004(c: &mut Criterion) {
+    let scenario = load("paper2004_best.json");
+    let mut group = c.benchmark_group("paper2004_best");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(20));
+    group.bench_function("N=1000 to T=0.01 s", |b| {
+        b.iter_batched(
+            || Simulation::new(&scenario).unwrap(),
+            |mut sim| {
+                sim.run().unwrap();
+                sim.counters().impacts
+            },
+            BatchSize::PerIteration,
+        )
+    });
+    group.finish();
+}
+
+/// N = 100 000 at volume fraction 0.05, no impacts possible in the measured steps
+/// (all grains move together, v_rel = 0 except a tiny spread), fixed Δt.
+fn dilute(c: &mut Criterion) {
+    let mut scenario = load("quick_demo.json");
+    scenario.cloud.count = 100_000;
+    scenario.cloud.radius = None;
+    // v_f = (π/6) s³ = 0.05
+    scenario.cloud.size_ratio = Some((0.05 * 6.0 / std::f64::consts::PI).cbrt());
+    scenario.domain.half_width = 0.05;
+    scenario.cloud.v_mean = [1.0, 2.0, 3.0];
+    scenario.cloud.v_rel = [1e-3, 1e-3, 1e-3];
+    scenario.material.gamma = None;
+    scenario.physics.cooling = CoolingMethod::Off;
+    scenario.diagnostics.invariants = false;
+    scenario.time.stepping = Stepping::Adaptive {
+        step_factor: 1.0,
+        dt_min: 1e-8,
+        dt_max: 1e-5,
+        skin: 0.5,
+    };
+    scenario.time.end = 1.0;
+    let steps = 20u64;
+    let mut group = c.benchmark_group("dilute_cloud");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(30));
+    group.throughput(Throughput::Elements(steps * 100_000));
+    let mut sim = Simulation::new(&scenario).unwrap();
+    group.bench_function(
+        "N=100000 v_f=0.05, 20 steps (elements = particle-steps)",
+        |b| {
+            b.iter(|| {
+                for _ in 0..steps {
+                    sim.step().unwrap();
+                }
+                assert_eq!(sim.counters().impacts, 0);
+            })
+        },
+    );
+    group.finish();
+}
+
+fn pair_solve(c: &mut Criterion) {
+    let body = |v: f64| PairBody {
+        mass: 4.0 / 3.0 * std::f64::consts::PI * 1e-9 * 2000.0,
+        radius: 1e-3,
+        velocity: DVec3::X * v,
+        temperature: 300.0,
+    };
+    let mut model = PairModel {
+        a0: 0.5,
+        af: 1.0,
+        beta: 1.0,
+        duration: agglo::scenario::DurationLaw::P04,
+        friction_scales_with_adhesion: false,
+        mu0: 0.1,
+        alpha: 0.0,
+        heat_capacity: 1000.0,
+        h0: 1e4,
+        activation_energy: 0.0,
+        tol: 1e-12,
+        max_iterations: 100,
+        solver: agglo::scenario::SolverKind::Safeguarded,
+    };
+    c.bench_function("pair solve a0=0.5 (fixed point)", |b| {
+        b.iter(|| solve_pair(&model, &body(2.0), &body(-2.0), DVec3::X))
+    });
+    model.a0 = 0.0;
+    c.bench_function("pair solve a0=0 (fallback)", |b| {
+        b.iter(|| solve_pair(&model, &body(2.0), &body(-2.0), DVec3::X))
+    });
+}
+
+criterion_group!(benches, paper2004, dilute, pair_solve);
+criterion_main!(benches);

@@ -39,7 +39,7 @@ pub enum SimError {
     #[error(transparent)]
     Scenario(#[from] ScenarioError),
     #[error(
-        "cloud placement failed: placed {placed} of {requested} particles of radius {radius:e} m \
+        "cloud placement failed: placed {placed} of {requested} particles of radius {radius:.4e} m \
          (volume fraction {volume_fraction:.3}) after {attempts} attempts; \
          lower `cloud.count` or `cloud.size_ratio`/`cloud.radius` (fractions up to ~0.30 place quickly)"
     )]
@@ -70,6 +70,8 @@ pub enum SimError {
     },
     #[error("run interrupted at step {step} (t = {time:e} s)")]
     Interrupted { step: u64, time: f64 },
+    #[error("the step pipeline is ill-formed: {0}")]
+    Schedule(String),
     #[error("non-finite state at step {step}: {what}")]
     NonFinite { step: u64, what: String },
 }

@@ -34,6 +34,10 @@ pub mod schedule;
 #[path = "../systems/mod.rs"]
 pub mod systems;
 
+// Extensions write systems against the same versions the engine uses.
+pub use bevy_ecs;
+pub use glam;
+
 /// The types most users need.
 pub mod prelude {
     pub use crate::components::*;

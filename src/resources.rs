@@ -344,15 +344,8 @@ pub struct ImpactRecords {
     pub records: Vec<ImpactRecord>,
 }
 
-/// Bodies that took part in an impact this step, with the energy they absorbed,
-/// after merging (a merged body carries both partners' energy). Read by fragmentation.
-#[derive(Resource, Debug, Default)]
-pub struct AbsorbedEnergy {
-    pub bodies: Vec<(Entity, f64)>,
-}
-
-/// Set when anything changed velocities, masses or the body set this step, so the
-/// time-step system must search neighbours again instead of reusing contact detection's.
+/// Set when impacts changed velocities (or fragmentation the body set) this step, so the
+/// time-step system must refresh contact detection's neighbour table before using it.
 #[derive(Resource, Debug, Default, Clone, Copy)]
 pub struct StateChanged(pub bool);
 
@@ -378,14 +371,4 @@ impl IdAllocator {
         self.next += 1;
         id
     }
-}
-
-/// Per-stage wall-clock timers [s] (cheap, always on).
-#[derive(Resource, Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-pub struct StageTimers {
-    pub contact: f64,
-    pub impact: f64,
-    pub time_step: f64,
-    pub cooling: f64,
-    pub drift: f64,
 }

@@ -212,16 +212,34 @@ impl SimBuilder {
         self
     }
 
-    /// Finish: the runnable simulation.
-    pub fn build(self) -> Simulation {
-        Simulation {
+    /// Finish: the runnable simulation. Fails if the pipeline is ill-formed (e.g. two
+    /// systems in one stage touching the same data without an order between them).
+    pub fn build(mut self) -> Result<Simulation, SimError> {
+        if let Err(e) = self.schedule.initialize(&mut self.world) {
+            let message = e.to_string(self.schedule.graph(), &self.world);
+            return Err(SimError::Schedule(message));
+        }
+        let systems = self
+            .schedule
+            .systems()
+            .map_err(|e| SimError::Schedule(format!("{e:?}")))?
+            .map(|(_, system)| short_name(&system.name().to_string()))
+            .collect();
+        Ok(Simulation {
             world: self.world,
             schedule: self.schedule,
             scenario: self.scenario,
             plugins: self.plugins,
+            systems,
             wall_seconds: 0.0,
-        }
+        })
     }
+}
+
+/// `agglo::systems::drift::drift` → `drift::drift`.
+fn short_name(full: &str) -> String {
+    let parts: Vec<&str> = full.rsplit("::").take(2).collect();
+    parts.into_iter().rev().collect::<Vec<_>>().join("::")
 }
 
 /// Closes the step: t ← t + Δt (exactly T on the last step), L ← L + 1.
@@ -242,6 +260,7 @@ pub struct Simulation {
     schedule: Schedule,
     scenario: Scenario,
     plugins: Vec<&'static str>,
+    systems: Vec<String>,
     wall_seconds: f64,
 }
 
@@ -250,7 +269,7 @@ impl Simulation {
     pub fn new(scenario: &Scenario) -> Result<Self, SimError> {
         let mut builder = SimBuilder::new(scenario)?;
         builder.add_default_plugins();
-        Ok(builder.build())
+        builder.build()
     }
 
     /// Start building with custom plugins (call [`SimBuilder::add_default_plugins`] for the built-ins).
@@ -264,6 +283,11 @@ impl Simulation {
     /// Names of the plugins built in, in order.
     pub fn plugins(&self) -> &[&'static str] {
         &self.plugins
+    }
+    /// The systems scheduled, in execution order (`module::function`): a scene runs only
+    /// the physics it needs, and this says which.
+    pub fn systems(&self) -> &[String] {
+        &self.systems
     }
     pub fn world(&self) -> &World {
         &self.world
