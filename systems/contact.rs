@@ -1,7 +1,9 @@
 //! Stage 1 — contact detection (MODEL.md §4).
 //!
 //! Gathers the bodies into a table sorted by stable id, finds every pair within
-//! the neighbour margin with the periodic [`NeighbourGrid`], and picks this step's
+//! the neighbour margin (the skin) with the periodic [`NeighbourGrid`] — reusing the
+//! list as a Verlet list while no body has moved more than skin/4 relative to the
+//! mean motion and no body was added or removed — and picks this step's
 //! contacts: touching (g ≤ tol·(b_i + b_j)) and approaching (w > 0) pairs, deepest
 //! first, ties by ids, at most one impact per body per step (the rest are met next
 //! step). With the papers' `nearest_neighbour` rule a pair counts only if one body
@@ -31,8 +33,17 @@ pub struct NeighbourTable {
     pub velocities: Vec<DVec3>,
     pub radii: Vec<f64>,
     pub masses: Vec<f64>,
-    /// Pairs with gap ≤ margin (skin, or the contact tolerance for fixed steps).
+    /// Pairs with gap ≤ margin at the last rebuild (skin, or the contact tolerance for
+    /// fixed steps); their `d` and `gap` are current.
     pub pairs: Vec<NearPair>,
+    /// Largest displacement of a body since the last rebuild, relative to the
+    /// mass-weighted mean displacement [m]. A pair missing from `pairs` has gap
+    /// > margin − 2·this, so the list stays complete while that is positive.
+    pub max_displacement: f64,
+    /// Margin the pairs were searched with [m].
+    pub margin: f64,
+    built_positions: Vec<DVec3>,
+    valid: bool,
     grid: NeighbourGrid,
     order: Vec<(u64, Entity, DVec3, DVec3, f64, f64)>,
 }
@@ -81,6 +92,56 @@ impl NeighbourTable {
             margin,
             &mut self.pairs,
         );
+        self.built_positions.clear();
+        self.built_positions.extend_from_slice(&self.positions);
+        self.max_displacement = 0.0;
+        self.margin = margin;
+        self.valid = true;
+    }
+
+    /// Forget the pair list (bodies were added, removed or resized).
+    pub fn invalidate(&mut self) {
+        self.valid = false;
+    }
+
+    /// Reuse the pair list as a Verlet list if the same bodies are present and none has
+    /// moved more than a quarter of the margin relative to the mean motion since the
+    /// rebuild; refreshes positions, velocities and pair geometry. False = rebuild.
+    pub fn try_reuse(&mut self, bodies: &BodyQuery, geometry: &BoxGeometry) -> bool {
+        if !self.valid || self.margin <= 0.0 || bodies.iter().len() != self.ids.len() {
+            return false;
+        }
+        let mut shift = DVec3::ZERO;
+        let mut mass = 0.0;
+        for k in 0..self.entities.len() {
+            let Ok((_, _, p, v, _, _)) = bodies.get(self.entities[k]) else {
+                return false;
+            };
+            self.positions[k] = p.0;
+            self.velocities[k] = v.0;
+            shift += self.masses[k] * geometry.min_image(p.0 - self.built_positions[k]);
+            mass += self.masses[k];
+        }
+        let shift = shift / mass;
+        let max = (0..self.positions.len())
+            .map(|k| {
+                (geometry.min_image(self.positions[k] - self.built_positions[k]) - shift).length()
+            })
+            .fold(0.0, f64::max);
+        if 2.0 * max > 0.5 * self.margin {
+            return false;
+        }
+        self.max_displacement = max;
+        self.update_pairs(geometry);
+        true
+    }
+
+    fn update_pairs(&mut self, geometry: &BoxGeometry) {
+        for pair in &mut self.pairs {
+            let (i, j) = (pair.i as usize, pair.j as usize);
+            pair.d = geometry.min_image(self.positions[j] - self.positions[i]);
+            pair.gap = pair.d.length() - self.radii[i] - self.radii[j];
+        }
     }
 
     /// Refresh positions and velocities in place (same bodies, same pairs): used when
@@ -94,11 +155,7 @@ impl NeighbourTable {
                 self.velocities[k] = v.0;
             }
         }
-        for pair in &mut self.pairs {
-            let (i, j) = (pair.i as usize, pair.j as usize);
-            pair.d = geometry.min_image(self.positions[j] - self.positions[i]);
-            pair.gap = pair.d.length() - self.radii[i] - self.radii[j];
-        }
+        self.update_pairs(geometry);
     }
 
     /// Closing speed w = (v_i − v_j)·n of a pair (> 0 when approaching).
@@ -148,9 +205,11 @@ pub fn detect_contacts(
     mut changed: ResMut<StateChanged>,
 ) {
     changed.0 = false;
-    let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
-    let margin = search_margin(&control, max_radius);
-    table.rebuild(&bodies, &geometry, margin);
+    if clock.bodies_reshaped || !table.try_reuse(&bodies, &geometry) {
+        let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
+        let margin = search_margin(&control, max_radius);
+        table.rebuild(&bodies, &geometry, margin);
+    }
     contacts.contacts.clear();
 
     let count = table.ids.len();

@@ -150,7 +150,11 @@ impl NeighbourGrid {
             }
         };
         let min_image = |d: DVec3| DVec3::new(wrap1(d.x), wrap1(d.y), wrap1(d.z));
-        for i in 0..count {
+        // Visit bodies cell by cell (members are sorted by cell): neighbours are then
+        // close in memory. The pairs' order depends only on the input, never on timing.
+        let order = self.levels.iter().flat_map(|level| level.members.iter());
+        for &i in order {
+            let i = i as usize;
             let ki = self.level_of[i] as usize;
             let ri = positions[i];
             let bi = radii[i];
@@ -191,11 +195,21 @@ impl NeighbourGrid {
                     continue;
                 }
                 let c = cell_coords(ri, half_width, level.width, n);
+                // |offset| ≤ s < n/2 here, so one conditional add wraps (no integer division).
                 let ni = n as isize;
+                let wrap = |x: isize| {
+                    if x < 0 {
+                        x + ni
+                    } else if x >= ni {
+                        x - ni
+                    } else {
+                        x
+                    }
+                };
                 let cell_at = |dx: isize, dy: isize, dz: isize| {
-                    let x = (c[0] as isize + dx).rem_euclid(ni) as usize;
-                    let y = (c[1] as isize + dy).rem_euclid(ni) as usize;
-                    let z = (c[2] as isize + dz).rem_euclid(ni) as usize;
+                    let x = wrap(c[0] as isize + dx) as usize;
+                    let y = wrap(c[1] as isize + dy) as usize;
+                    let z = wrap(c[2] as isize + dz) as usize;
                     (z * n + y) * n + x
                 };
                 let members_of = |cell: usize| {

@@ -69,8 +69,11 @@ pub fn choose_time_step(
             }
             let t_c = next_contact_time(&table);
             let v_max = max_relative_speed(&table);
+            // The pair list is complete for gaps up to margin − 2·(displacement so far):
+            // no unlisted pair may close that much in this step.
+            let usable = (table.margin.min(skin) - 2.0 * table.max_displacement).max(0.0);
             let upper = if v_max > 0.0 {
-                dt_max.min(skin / (2.0 * v_max))
+                dt_max.min(usable / (2.0 * v_max))
             } else {
                 dt_max
             };
