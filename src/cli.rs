@@ -143,6 +143,14 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         .or_else(|| scenario.output.mcap.clone().map(PathBuf::from));
 
     let mut sim = Simulation::new(&scenario).context("setting up the scene")?;
+
+    let interrupted = Arc::new(AtomicBool::new(false));
+    {
+        let flag = interrupted.clone();
+        // A second handler cannot be installed (e.g. in tests); the run still works without one.
+        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
+    }
+    // Created after the Ctrl-C handler: once the file exists, an interrupt finalises it.
     let mut recorder = match &mcap_path {
         Some(path) => {
             let command_line = std::env::args().collect::<Vec<_>>().join(" ");
@@ -151,13 +159,6 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         None => None,
     };
     let mut record_error: Option<anyhow::Error> = None;
-
-    let interrupted = Arc::new(AtomicBool::new(false));
-    {
-        let flag = interrupted.clone();
-        // A second handler cannot be installed (e.g. in tests); the run still works without one.
-        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
-    }
     let show_progress = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
     let bar = if show_progress {
         let bar = ProgressBar::new(1000);

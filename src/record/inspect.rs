@@ -110,6 +110,9 @@ pub fn inspect(path: &Path) -> anyhow::Result<Inspection> {
 /// The scenario embedded in the recording at `path` (as run: seed applied).
 pub fn scenario_from_recording(path: &Path) -> anyhow::Result<Scenario> {
     let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    if !buf.starts_with(mcap::MAGIC) {
+        anyhow::bail!("{} is not an MCAP file (no MCAP magic)", path.display());
+    }
     let reader = LinearReader::new_with_options(&buf, Options::IgnoreEndMagic.into())
         .with_context(|| format!("{} is not an MCAP file", path.display()))?;
     for record in reader {
