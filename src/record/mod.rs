@@ -157,11 +157,8 @@ impl ColourScale {
         let i = (x.floor() as usize).min(STOPS.len() - 2);
         let w = x - i as f64;
         let (a, b) = (STOPS[i], STOPS[i + 1]);
-        [
-            a[0] + w * (b[0] - a[0]),
-            a[1] + w * (b[1] - a[1]),
-            a[2] + w * (b[2] - a[2]),
-        ]
+        // (1 − w) a + w b: exact at both stops.
+        [0, 1, 2].map(|k| (1.0 - w) * a[k] + w * b[k])
     }
 }
 
