@@ -389,8 +389,8 @@ fn a_step_limit_error_leaves_a_finalised_recording() {
     // The last state (step 40) is recorded.
     let last = messages(&buf)
         .into_iter()
-        .filter(|m| m.0 == "/stats")
-        .last()
+        .rev()
+        .find(|m| m.0 == "/stats")
         .unwrap();
     let v: serde_json::Value = serde_json::from_slice(&last.2).unwrap();
     assert_eq!(v["step"].as_u64(), Some(40));
