@@ -369,6 +369,10 @@ fn from_recording_reproduces_the_final_state_bit_for_bit() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("not an MCAP file"), "{err}");
+    let out = agglo(&["inspect", s(&scenario)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("not an MCAP file"), "{err}");
 }
 
 #[test]

@@ -57,6 +57,9 @@ pub struct Inspection {
 /// Scan the recording at `path`.
 pub fn inspect(path: &Path) -> anyhow::Result<Inspection> {
     let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    if !buf.starts_with(mcap::MAGIC) {
+        anyhow::bail!("{} is not an MCAP file (no MCAP magic)", path.display());
+    }
     let mut scan = Scan::default();
     scan.run(&buf);
     let finalised = matches!(mcap::Summary::read(&buf), Ok(Some(_)));
