@@ -32,12 +32,28 @@ pub enum Command {
     },
     /// Print the JSON Schema of the scenario format.
     Schema,
+    /// Summarise an MCAP recording: channels, counts, duration, scenario, final statistics.
+    Inspect {
+        /// Recording (MCAP) written by `agglo run --out`.
+        file: PathBuf,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(clap::Args, Debug)]
 pub struct RunArgs {
     /// Scenario file (JSON).
-    pub scenario: PathBuf,
+    #[arg(required_unless_present = "from", conflicts_with = "from")]
+    pub scenario: Option<PathBuf>,
+    /// Re-run the scenario embedded in this recording (MCAP); the output paths it names are
+    /// ignored (pass --out / --final-state / --summary).
+    #[arg(long, value_name = "RECORDING")]
+    pub from: Option<PathBuf>,
+    /// Record the run to this MCAP file for Foxglove (overrides `output.mcap`).
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
     /// Override the scenario's seed.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -65,6 +81,15 @@ pub fn main() -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::Inspect { file, json } => {
+            let report = agglo::record::inspect(&file)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            } else {
+                print!("{}", report.to_text());
+            }
+            Ok(())
+        }
     }
 }
 
@@ -88,7 +113,18 @@ fn validate(path: &Path) -> anyhow::Result<()> {
 }
 
 fn run(args: RunArgs) -> anyhow::Result<()> {
-    let mut scenario = load(&args.scenario)?;
+    let mut scenario = match (&args.scenario, &args.from) {
+        (Some(path), _) => load(path)?,
+        (None, Some(recording)) => {
+            let mut s = agglo::record::scenario_from_recording(recording)?;
+            // The recording's own output paths would overwrite files (even the recording).
+            s.output.summary = None;
+            s.output.final_state = None;
+            s.output.mcap = None;
+            s
+        }
+        (None, None) => anyhow::bail!("give a scenario file or --from RECORDING"),
+    };
     if let Some(seed) = args.seed {
         scenario.seed = seed;
     }
@@ -101,6 +137,11 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         .clone()
         .or_else(|| scenario.output.final_state.clone().map(PathBuf::from));
 
+    let mcap_path = args
+        .out
+        .clone()
+        .or_else(|| scenario.output.mcap.clone().map(PathBuf::from));
+
     let mut sim = Simulation::new(&scenario).context("setting up the scene")?;
 
     let interrupted = Arc::new(AtomicBool::new(false));
@@ -109,6 +150,15 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         // A second handler cannot be installed (e.g. in tests); the run still works without one.
         let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
     }
+    // Created after the Ctrl-C handler: once the file exists, an interrupt finalises it.
+    let mut recorder = match &mcap_path {
+        Some(path) => {
+            let command_line = std::env::args().collect::<Vec<_>>().join(" ");
+            Some(agglo::record::Recorder::create(path, &sim, &command_line)?)
+        }
+        None => None,
+    };
+    let mut record_error: Option<anyhow::Error> = None;
     let show_progress = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
     let bar = if show_progress {
         let bar = ProgressBar::new(1000);
@@ -131,6 +181,12 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
                 bar.set_message(format!("step {} t = {:.3e} s", c.step, c.time));
             }
         }
+        if let Some(r) = recorder.as_mut()
+            && let Err(e) = r.observe(s)
+        {
+            record_error = Some(e);
+            return ControlFlow::Break(());
+        }
         if interrupted.load(Ordering::SeqCst) {
             ControlFlow::Break(())
         } else {
@@ -141,6 +197,24 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         bar.finish_and_clear();
     }
 
+    // Finalise the recording whatever happened (summary section written), then the rest.
+    if let Some(r) = recorder.take() {
+        let path = r.path().to_path_buf();
+        match r.finish(&sim, &outcome) {
+            Ok(rep) if !args.quiet => println!(
+                "recorded {} snapshots ({} deletions, {} events) to {} ({:.2} MB)",
+                rep.snapshots,
+                rep.deletions,
+                rep.events,
+                path.display(),
+                rep.bytes as f64 / 1e6
+            ),
+            Ok(_) => {}
+            Err(e) => {
+                record_error.get_or_insert(e);
+            }
+        }
+    }
     // Write what we have even when the run failed: nothing is lost.
     let bodies = sim.bodies();
     let summary = Summary::new(&sim, &bodies);
@@ -152,6 +226,9 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     }
     if !args.quiet {
         print_report(&summary);
+    }
+    if let Some(e) = record_error {
+        return Err(e.context("recording the run"));
     }
     outcome.context("running the scenario")?;
     Ok(())

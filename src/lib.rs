@@ -27,6 +27,7 @@ pub mod components;
 pub mod error;
 pub mod observables;
 pub mod output;
+pub mod record;
 pub mod resources;
 pub mod scenario;
 pub mod schedule;

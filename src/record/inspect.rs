@@ -1,0 +1,322 @@
+//! Reading recordings back: `agglo inspect` ([`inspect`]) and the scenario embedded
+//! for `agglo run --from` ([`scenario_from_recording`]).
+//!
+//! The reader scans the file record by record, so it also reads a file whose writer
+//! was killed (no summary section, possibly a torn last chunk): it reports what the
+//! complete chunks hold and says where the file ends.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::Context;
+use mcap::read::{ChunkReader, LinearReader, Options};
+use mcap::records::Record;
+use serde::Serialize;
+
+use super::{RESULT_METADATA, RUN_METADATA, SCENARIO_ATTACHMENT, STATS_TOPIC};
+use crate::scenario::Scenario;
+
+/// One channel of a recording.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ChannelInfo {
+    pub topic: String,
+    pub schema: String,
+    pub message_encoding: String,
+    pub messages: u64,
+}
+
+/// What `agglo inspect` reports.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Inspection {
+    pub file: String,
+    pub bytes: u64,
+    /// True when the summary section and footer are present (the writer finished).
+    pub finalised: bool,
+    /// Why the scan stopped early, for a damaged or truncated file.
+    pub damage: Option<String>,
+    pub chunks: u64,
+    pub channels: Vec<ChannelInfo>,
+    pub messages: u64,
+    /// Log-time span of the messages [s] (simulated time × playback scale).
+    pub log_seconds: f64,
+    /// Simulated time of the first and last `/stats` message [s].
+    pub first_time: Option<f64>,
+    pub last_time: Option<f64>,
+    pub scenario: Option<String>,
+    pub seed: Option<u64>,
+    pub engine_version: Option<String>,
+    pub command_line: Option<String>,
+    /// The outcome metadata (status, message, steps, time), absent if the writer was killed.
+    pub result: Option<BTreeMap<String, String>>,
+    /// The last `/stats` message.
+    pub final_stats: Option<serde_json::Value>,
+    /// Whether the scenario attachment is present.
+    pub has_scenario: bool,
+}
+
+/// Scan the recording at `path`.
+pub fn inspect(path: &Path) -> anyhow::Result<Inspection> {
+    let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    if !buf.starts_with(mcap::MAGIC) {
+        anyhow::bail!("{} is not an MCAP file (no MCAP magic)", path.display());
+    }
+    let mut scan = Scan::default();
+    scan.run(&buf);
+    let finalised = matches!(mcap::Summary::read(&buf), Ok(Some(_)));
+
+    let mut meta = scan.metadata.remove(RUN_METADATA).unwrap_or_default();
+    let scenario_value: Option<serde_json::Value> = scan
+        .scenario_json
+        .as_deref()
+        .and_then(|s| serde_json::from_slice(s).ok());
+    let channels: Vec<ChannelInfo> = scan.channels.into_values().collect();
+    let stats_time = |v: &Option<serde_json::Value>| {
+        v.as_ref()
+            .and_then(|v| v.get("time"))
+            .and_then(|t| t.as_f64())
+    };
+    Ok(Inspection {
+        file: path.display().to_string(),
+        bytes: buf.len() as u64,
+        finalised,
+        damage: scan.damage,
+        chunks: scan.chunks,
+        messages: channels.iter().map(|c| c.messages).sum(),
+        channels,
+        log_seconds: match scan.log_span {
+            Some((a, b)) => (b - a) as f64 * 1e-9,
+            None => 0.0,
+        },
+        first_time: stats_time(&scan.first_stats),
+        last_time: stats_time(&scan.last_stats),
+        scenario: meta.remove("scenario").or_else(|| {
+            scenario_value
+                .as_ref()
+                .and_then(|v| v.get("name")?.as_str().map(String::from))
+        }),
+        seed: meta
+            .remove("seed")
+            .and_then(|s| s.parse().ok())
+            .or_else(|| {
+                scenario_value
+                    .as_ref()
+                    .and_then(|v| v.get("seed")?.as_u64())
+            }),
+        engine_version: meta.remove("engine_version"),
+        command_line: meta.remove("command_line"),
+        result: scan.metadata.remove(RESULT_METADATA),
+        final_stats: scan.last_stats,
+        has_scenario: scan.scenario_json.is_some(),
+    })
+}
+
+/// The scenario embedded in the recording at `path` (as run: seed applied).
+pub fn scenario_from_recording(path: &Path) -> anyhow::Result<Scenario> {
+    let buf = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    if !buf.starts_with(mcap::MAGIC) {
+        anyhow::bail!("{} is not an MCAP file (no MCAP magic)", path.display());
+    }
+    let reader = LinearReader::new_with_options(&buf, Options::IgnoreEndMagic.into())
+        .with_context(|| format!("{} is not an MCAP file", path.display()))?;
+    for record in reader {
+        let record = record.with_context(|| format!("reading {}", path.display()))?;
+        match record {
+            Record::Attachment { header, data, .. } if header.name == SCENARIO_ATTACHMENT => {
+                let text = std::str::from_utf8(&data).with_context(|| {
+                    format!("attachment {SCENARIO_ATTACHMENT} is not UTF-8 text")
+                })?;
+                return Scenario::from_json(text).with_context(|| {
+                    format!(
+                        "parsing the scenario embedded in {} (attachment {SCENARIO_ATTACHMENT})",
+                        path.display()
+                    )
+                });
+            }
+            // The writer puts the attachment before any chunk: stop at the first.
+            Record::Chunk { .. } | Record::DataEnd(_) => break,
+            _ => {}
+        }
+    }
+    anyhow::bail!(
+        "{} holds no `{SCENARIO_ATTACHMENT}` attachment: not an agglo recording",
+        path.display()
+    )
+}
+
+#[derive(Default)]
+struct Scan {
+    /// Channel id → schema name (resolved when the channel is seen).
+    schemas: BTreeMap<u16, String>,
+    channels: BTreeMap<u16, ChannelInfo>,
+    stats_channel: Option<u16>,
+    metadata: BTreeMap<String, BTreeMap<String, String>>,
+    scenario_json: Option<Vec<u8>>,
+    chunks: u64,
+    log_span: Option<(u64, u64)>,
+    first_stats: Option<serde_json::Value>,
+    last_stats: Option<serde_json::Value>,
+    damage: Option<String>,
+}
+
+impl Scan {
+    fn run(&mut self, buf: &[u8]) {
+        let reader = match LinearReader::new_with_options(buf, Options::IgnoreEndMagic.into()) {
+            Ok(r) => r,
+            Err(e) => {
+                self.damage = Some(format!("not an MCAP file: {e}"));
+                return;
+            }
+        };
+        for record in reader {
+            match record {
+                Ok(Record::DataEnd(_)) => return,
+                Ok(Record::Chunk { header, data }) => {
+                    // Read the whole chunk first: a torn chunk must not count half.
+                    let records: Result<Vec<_>, _> = match ChunkReader::new(header, &data) {
+                        Ok(r) => r.collect(),
+                        Err(e) => Err(e),
+                    };
+                    match records {
+                        Ok(records) => {
+                            self.chunks += 1;
+                            for r in records {
+                                self.record(r);
+                            }
+                        }
+                        Err(e) => {
+                            self.damage = Some(format!("unreadable chunk: {e}"));
+                            return;
+                        }
+                    }
+                }
+                Ok(r) => self.record(r),
+                Err(e) => {
+                    self.damage = Some(format!("file ends early: {e}"));
+                    return;
+                }
+            }
+        }
+        // No DataEnd record: the writer never finished.
+        self.damage = Some("no data-end record: the writer did not finish".into());
+    }
+
+    fn record(&mut self, record: Record<'_>) {
+        match record {
+            Record::Schema { header, .. } => {
+                self.schemas.insert(header.id, header.name);
+            }
+            Record::Channel(c) => {
+                if c.topic == STATS_TOPIC {
+                    self.stats_channel = Some(c.id);
+                }
+                let schema = self.schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                self.channels.entry(c.id).or_insert(ChannelInfo {
+                    topic: c.topic,
+                    schema,
+                    message_encoding: c.message_encoding,
+                    messages: 0,
+                });
+            }
+            Record::Message { header, data } => {
+                if let Some(c) = self.channels.get_mut(&header.channel_id) {
+                    c.messages += 1;
+                }
+                let t = header.log_time;
+                self.log_span = Some(match self.log_span {
+                    None => (t, t),
+                    Some((a, b)) => (a.min(t), b.max(t)),
+                });
+                if Some(header.channel_id) == self.stats_channel
+                    && let Ok(v) = serde_json::from_slice::<serde_json::Value>(&data)
+                {
+                    if self.first_stats.is_none() {
+                        self.first_stats = Some(v.clone());
+                    }
+                    self.last_stats = Some(v);
+                }
+            }
+            Record::Metadata(m) => {
+                self.metadata.insert(m.name, m.metadata);
+            }
+            Record::Attachment { header, data, .. } if header.name == SCENARIO_ATTACHMENT => {
+                self.scenario_json = Some(data.into_owned());
+            }
+            _ => {}
+        }
+    }
+}
+
+impl Inspection {
+    /// Human-readable report.
+    pub fn to_text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let _ = writeln!(s, "{} ({} bytes)", self.file, self.bytes);
+        let _ = writeln!(
+            s,
+            "  scenario {} (seed {}), agglo {}",
+            self.scenario.as_deref().unwrap_or("?"),
+            self.seed
+                .map(|x| x.to_string())
+                .unwrap_or_else(|| "?".into()),
+            self.engine_version.as_deref().unwrap_or("?")
+        );
+        if let Some(cmd) = &self.command_line {
+            let _ = writeln!(s, "  command line: {cmd}");
+        }
+        let _ = writeln!(
+            s,
+            "  {}; {} chunks, {} messages{}",
+            if self.finalised {
+                "finalised (summary present)"
+            } else {
+                "NOT finalised (no summary)"
+            },
+            self.chunks,
+            self.messages,
+            self.damage
+                .as_ref()
+                .filter(|_| !self.finalised)
+                .map(|d| format!(" — {d}"))
+                .unwrap_or_default()
+        );
+        match (self.first_time, self.last_time) {
+            (Some(a), Some(b)) => {
+                let _ = writeln!(
+                    s,
+                    "  simulated time {a:e} s → {b:e} s ({:e} s), replayed in {:.3} s of log time",
+                    b - a,
+                    self.log_seconds
+                );
+            }
+            _ => {
+                let _ = writeln!(s, "  no /stats messages");
+            }
+        }
+        if let Some(r) = &self.result {
+            let _ = writeln!(
+                s,
+                "  outcome: {} — {}",
+                r.get("status").map(String::as_str).unwrap_or("?"),
+                r.get("message").map(String::as_str).unwrap_or("")
+            );
+        } else {
+            let _ = writeln!(s, "  outcome: unknown (no result metadata)");
+        }
+        let _ = writeln!(s, "  channels:");
+        for c in &self.channels {
+            let _ = writeln!(
+                s,
+                "    {:<11} {:>7} messages  {} ({})",
+                c.topic, c.messages, c.schema, c.message_encoding
+            );
+        }
+        if let Some(serde_json::Value::Object(m)) = &self.final_stats {
+            let _ = writeln!(s, "  final statistics:");
+            for (k, v) in m {
+                let _ = writeln!(s, "    {k:<24} {v}");
+            }
+        }
+        s
+    }
+}

@@ -1,0 +1,250 @@
+//! Recording a run to MCAP for replay in Foxglove, and reading recordings back.
+//!
+//! A recording holds four channels:
+//!
+//! | topic        | schema                       | encoding | what                                        |
+//! |--------------|------------------------------|----------|---------------------------------------------|
+//! | `/particles` | `foxglove.SceneUpdate`       | protobuf | one sphere per body (id = stable body id), deletions of bodies gone since the last snapshot |
+//! | `/box`       | `foxglove.SceneUpdate`       | protobuf | the periodic box [−D, D]³ as a line list, once |
+//! | `/stats`     | `agglo.Stats` (JSON Schema)  | json     | observables and counters per snapshot ([`Stats`]) |
+//! | `/events`    | `foxglove.Log`               | protobuf | warnings (solver fallbacks, clamped steps, invariant violations) and the run's outcome |
+//!
+//! plus the scenario actually run (seed applied) as the attachment
+//! [`SCENARIO_ATTACHMENT`] and metadata records [`RUN_METADATA`] (engine version,
+//! seed, command line, time scale) and [`RESULT_METADATA`] (outcome, written last).
+//!
+//! **Time.** A P04 run lasts 10 ms of simulated time; Foxglove replays log time in
+//! real time. So the log time of every message is simulated time × a playback
+//! scale ([`Sampling::log_seconds_per_sim_second`], default: the whole run in
+//! `output.recording.playback_seconds` = 30 s); the true simulated time is the
+//! `time` field of every `/stats` message and the scale is in the metadata.
+//!
+//! **Colour.** Spheres are coloured by temperature on a logarithmic scale
+//! ([`ColourScale`]): blue at θ_lo = min(θ0, θ_s), through cyan, green and yellow,
+//! to red at 10³ θ_lo and above.
+//!
+//! The writer lives in [`writer`], the reader behind `agglo inspect` and
+//! `agglo run --from` in [`inspect`].
+
+pub mod inspect;
+mod stats;
+pub mod writer;
+
+pub use inspect::{Inspection, inspect, scenario_from_recording};
+pub use stats::Stats;
+pub use writer::{Recorder, RecordingReport};
+
+use bevy_ecs::prelude::*;
+
+use crate::components::{
+    BodyState, Hardness, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature,
+    Velocity,
+};
+use crate::scenario::Scenario;
+
+/// Topic of the bodies (`foxglove.SceneUpdate`).
+pub const PARTICLES_TOPIC: &str = "/particles";
+/// Topic of the periodic box (`foxglove.SceneUpdate`), written once.
+pub const BOX_TOPIC: &str = "/box";
+/// Topic of the statistics (JSON, schema [`Stats`]).
+pub const STATS_TOPIC: &str = "/stats";
+/// Topic of warnings and the outcome (`foxglove.Log`).
+pub const EVENTS_TOPIC: &str = "/events";
+/// Name of the attachment holding the scenario JSON.
+pub const SCENARIO_ATTACHMENT: &str = "scenario.json";
+/// Name of the metadata record written at the start.
+pub const RUN_METADATA: &str = "agglo";
+/// Name of the metadata record written when the recording is finalised.
+pub const RESULT_METADATA: &str = "agglo.result";
+/// Frame of every scene entity.
+pub const FRAME_ID: &str = "world";
+
+/// Decades of temperature spanned by the colour scale.
+pub const COLOUR_DECADES: f64 = 3.0;
+
+/// When to take a snapshot and how to map simulated time to log time.
+///
+/// From `output.recording`: with `every_steps = k > 0` and no `interval`, every
+/// k-th step; with an `interval` Δt_rec (and `every_steps = 0`), whenever simulated time
+/// has crossed a multiple of Δt_rec; with both, whichever comes first; with neither,
+/// Δt_rec = T / 300. The first (t = 0) and last states are always recorded.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sampling {
+    /// Record every k-th step (0 = off).
+    pub every_steps: u64,
+    /// Record every Δt_rec [s] of simulated time (`None` = off).
+    pub interval: Option<f64>,
+    /// Log seconds per simulated second: playback_seconds / T.
+    pub log_seconds_per_sim_second: f64,
+}
+
+/// Default number of snapshots per run when nothing is set (Δt_rec = T / this).
+pub const DEFAULT_SNAPSHOTS: f64 = 300.0;
+
+impl Sampling {
+    pub fn from_scenario(s: &Scenario) -> Self {
+        let r = &s.output.recording;
+        let interval = match (r.every_steps, r.interval) {
+            (0, None) => Some(s.time.end / DEFAULT_SNAPSHOTS),
+            (_, i) => i,
+        };
+        Self {
+            every_steps: r.every_steps,
+            interval,
+            log_seconds_per_sim_second: r.playback_seconds / s.time.end,
+        }
+    }
+
+    /// Log time [ns] of simulated time `t` [s] (saturating; 0 for non-finite or negative t).
+    pub fn log_time(&self, t: f64) -> u64 {
+        let ns = (t * self.log_seconds_per_sim_second * 1e9).round();
+        if ns.is_finite() && ns > 0.0 {
+            // `as` saturates at u64::MAX (≈ 585 years of playback).
+            ns as u64
+        } else {
+            0
+        }
+    }
+
+    /// Whether step `step` ending at time `t` is due, given the last recorded time `last_t`.
+    /// Time-based snapshots fire when t crosses a multiple of Δt_rec, so they do not drift
+    /// with the step sizes.
+    pub fn due(&self, step: u64, t: f64, last_t: f64) -> bool {
+        if self.every_steps > 0 && step.is_multiple_of(self.every_steps) {
+            return true;
+        }
+        match self.interval {
+            Some(dt) => (t / dt).floor() > (last_t / dt).floor(),
+            None => false,
+        }
+    }
+}
+
+/// The temperature colour scale: log θ from θ_lo (blue) to θ_lo · 10^[`COLOUR_DECADES`] (red).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ColourScale {
+    /// θ_lo [K] = min(θ0, θ_s): the coldest colour.
+    pub theta_lo: f64,
+    /// θ_hi [K]: the hottest colour (and everything above).
+    pub theta_hi: f64,
+}
+
+impl ColourScale {
+    pub fn from_scenario(s: &Scenario) -> Self {
+        let theta_lo = s.material.theta0.min(s.material.theta_s);
+        Self {
+            theta_lo,
+            theta_hi: theta_lo * 10f64.powf(COLOUR_DECADES),
+        }
+    }
+
+    /// Position of θ on the scale, in [0, 1] (0 for NaN).
+    pub fn fraction(&self, theta: f64) -> f64 {
+        let f = (theta / self.theta_lo).ln() / (self.theta_hi / self.theta_lo).ln();
+        if f.is_nan() { 0.0 } else { f.clamp(0.0, 1.0) }
+    }
+
+    /// RGB in [0, 1] of θ: blue → cyan → green → yellow → red, linear between the stops.
+    pub fn rgb(&self, theta: f64) -> [f64; 3] {
+        const STOPS: [[f64; 3]; 5] = [
+            [0.10, 0.25, 1.00],
+            [0.00, 0.85, 1.00],
+            [0.20, 0.90, 0.20],
+            [1.00, 0.90, 0.00],
+            [1.00, 0.10, 0.05],
+        ];
+        let x = self.fraction(theta) * (STOPS.len() - 1) as f64;
+        let i = (x.floor() as usize).min(STOPS.len() - 2);
+        let w = x - i as f64;
+        let (a, b) = (STOPS[i], STOPS[i + 1]);
+        // (1 − w) a + w b: exact at both stops.
+        [0, 1, 2].map(|k| (1.0 - w) * a[k] + w * b[k])
+    }
+}
+
+/// Every body of `world`, sorted by stable id. Like [`crate::schedule::Simulation::bodies`]
+/// but from a shared reference, so it can run inside `Simulation::run_with`'s observer.
+pub fn bodies_of(world: &World) -> Vec<BodyState> {
+    let Some(mut query) = world.try_query_filtered::<(
+        &ParticleId,
+        &Position,
+        &Velocity,
+        &Mass,
+        &Radius,
+        &Temperature,
+        &Hardness,
+        &Primaries,
+    ), With<Particle>>() else {
+        // Components not registered: a world without particles.
+        return Vec::new();
+    };
+    let mut bodies: Vec<BodyState> = query
+        .iter(world)
+        .map(|(id, p, v, m, b, t, h, n)| BodyState {
+            id: id.0,
+            position: p.0,
+            velocity: v.0,
+            mass: m.0,
+            radius: b.0,
+            temperature: t.0,
+            hardness: h.0,
+            primaries: n.0,
+        })
+        .collect();
+    bodies.sort_by_key(|b| b.id);
+    bodies
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn colour_scale_ends_and_clamps() {
+        let c = ColourScale {
+            theta_lo: 300.0,
+            theta_hi: 3e5,
+        };
+        assert_eq!(c.fraction(300.0), 0.0);
+        assert_eq!(c.fraction(3e5), 1.0);
+        assert_eq!(c.fraction(1e9), 1.0);
+        assert_eq!(c.fraction(1.0), 0.0);
+        // One decade of three: a third of the way (ln ratio, exact up to rounding).
+        assert!((c.fraction(3000.0) - 1.0 / 3.0).abs() < 1e-12);
+        assert_eq!(c.rgb(300.0), [0.10, 0.25, 1.00]);
+        assert_eq!(c.rgb(1e7), [1.00, 0.10, 0.05]);
+    }
+
+    #[test]
+    fn time_sampling_fires_on_crossing_multiples() {
+        let s = Sampling {
+            every_steps: 0,
+            interval: Some(1.0),
+            log_seconds_per_sim_second: 1.0,
+        };
+        assert!(!s.due(1, 0.5, 0.0));
+        assert!(s.due(2, 1.2, 0.5));
+        assert!(!s.due(3, 1.9, 1.2));
+        // A long step that skips several multiples records once.
+        assert!(s.due(4, 4.5, 1.9));
+        let k = Sampling {
+            every_steps: 3,
+            interval: None,
+            log_seconds_per_sim_second: 1.0,
+        };
+        assert!(k.due(3, 0.1, 0.0) && !k.due(4, 0.2, 0.1) && k.due(6, 0.3, 0.2));
+    }
+
+    #[test]
+    fn log_time_scales_and_saturates() {
+        let s = Sampling {
+            every_steps: 0,
+            interval: None,
+            log_seconds_per_sim_second: 3000.0,
+        };
+        assert_eq!(s.log_time(0.01), 30_000_000_000);
+        assert_eq!(s.log_time(-1.0), 0);
+        assert_eq!(s.log_time(f64::NAN), 0);
+        assert_eq!(s.log_time(f64::INFINITY), 0);
+    }
+}

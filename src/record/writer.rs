@@ -1,0 +1,582 @@
+//! The [`Recorder`]: writes a run to MCAP through the `mcap` crate, with Foxglove's
+//! protobuf schemas from the `foxglove` crate (not its logging machinery, so log
+//! times are simulated time × the playback scale rather than wall-clock time).
+//!
+//! Life cycle: [`Recorder::create`] writes the metadata, the scenario attachment, the
+//! schemas and channels, the box and the first snapshot; [`Recorder::observe`] runs
+//! after every step (cheap unless a snapshot is due); [`Recorder::finish`] records the
+//! last state, the outcome and writes the summary section — call it whatever the
+//! run's outcome. Chunks are zstd-compressed, bounded by [`CHUNK_SIZE`] and every one
+//! holds messages (so every chunk gets message indexes): a killed process leaves the
+//! chunks written so far readable.
+
+use std::borrow::Cow;
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use foxglove::Encode;
+use foxglove::schemas::{
+    Color, LinePrimitive, Log, Point3, Pose, Quaternion, SceneEntity, SceneEntityDeletion,
+    SceneUpdate, SpherePrimitive, Timestamp, Vector3, line_primitive, log, scene_entity_deletion,
+};
+use mcap::records::{MessageHeader, Metadata};
+
+use super::{
+    BOX_TOPIC, ColourScale, EVENTS_TOPIC, FRAME_ID, PARTICLES_TOPIC, RESULT_METADATA, RUN_METADATA,
+    SCENARIO_ATTACHMENT, STATS_TOPIC, Sampling, Stats, bodies_of,
+};
+use crate::components::BodyState;
+use crate::error::SimError;
+use crate::observables::Summary;
+use crate::resources::{BoxGeometry, Counters};
+use crate::schedule::Simulation;
+
+/// Target uncompressed chunk size [bytes]: about 8 snapshots of 1000 bodies, so a
+/// killed run loses at most a few snapshots.
+pub const CHUNK_SIZE: u64 = 1 << 20;
+
+/// Name used in `foxglove.Log` messages.
+const LOG_NAME: &str = "agglo";
+
+/// Invariant-violation descriptions copied into `/events` at most (the engine keeps
+/// the first few itself; the counts keep coming in the aggregated warnings).
+const MAX_VIOLATION_EVENTS: usize = 20;
+
+/// Channel ids.
+#[derive(Debug, Clone, Copy)]
+struct Channels {
+    particles: u16,
+    bbox: u16,
+    stats: u16,
+    events: u16,
+}
+
+/// What a recording holds, returned by [`Recorder::finish`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RecordingReport {
+    /// `/particles` snapshots written.
+    pub snapshots: u64,
+    /// Entity deletions issued.
+    pub deletions: u64,
+    /// `/events` messages written.
+    pub events: u64,
+    /// File size [bytes].
+    pub bytes: u64,
+}
+
+/// Counter increments since the last snapshot, reported there as one warning each.
+#[derive(Debug, Clone, Copy, Default)]
+struct Pending {
+    since: f64,
+    fallbacks: u64,
+    unconverged: u64,
+    clamped_steps: u64,
+    overlap_violations: u64,
+    invariant_violations: u64,
+}
+
+/// Records one run. See the module docs.
+pub struct Recorder {
+    writer: mcap::Writer<BufWriter<File>>,
+    path: PathBuf,
+    channels: Channels,
+    sequence: u32,
+    sampling: Sampling,
+    colours: ColourScale,
+    /// Simulated time and step of the last snapshot.
+    last_time: f64,
+    last_step: u64,
+    /// Ids shown by the last snapshot, sorted.
+    shown: Vec<u64>,
+    counters: Counters,
+    pending: Pending,
+    violations_reported: usize,
+    report: RecordingReport,
+    buf: Vec<u8>,
+}
+
+impl Recorder {
+    /// Create `path` and record the initial state of `sim` (which must not have stepped yet
+    /// for the recording to start at t = 0). `command_line` goes into the metadata.
+    pub fn create(path: &Path, sim: &Simulation, command_line: &str) -> anyhow::Result<Self> {
+        let scenario = sim.scenario();
+        let file =
+            File::create(path).with_context(|| format!("creating recording {}", path.display()))?;
+        let mut writer = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .profile("")
+            .library(format!("agglo {}", env!("CARGO_PKG_VERSION")))
+            .chunk_size(Some(CHUNK_SIZE))
+            // Compress on this thread: the simulation is single-threaded and the
+            // machine's other cores belong to other runs.
+            .compression_threads(0)
+            .create(BufWriter::new(file))
+            .with_context(|| format!("starting recording {}", path.display()))?;
+        let sampling = Sampling::from_scenario(scenario);
+        let colours = ColourScale::from_scenario(scenario);
+
+        // Metadata and the attachment first, outside chunks, so the first chunk holds
+        // the schemas, channels and messages together.
+        let mut meta = BTreeMap::new();
+        meta.insert(
+            "engine_version".into(),
+            env!("CARGO_PKG_VERSION").to_string(),
+        );
+        meta.insert("scenario".into(), scenario.name.clone());
+        meta.insert("seed".into(), scenario.seed.to_string());
+        meta.insert("command_line".into(), command_line.to_string());
+        meta.insert("time_end_s".into(), format!("{:?}", scenario.time.end));
+        meta.insert(
+            "log_seconds_per_sim_second".into(),
+            format!("{:?}", sampling.log_seconds_per_sim_second),
+        );
+        meta.insert(
+            "snapshot_interval_s".into(),
+            sampling
+                .interval
+                .map(|dt| format!("{dt:?}"))
+                .unwrap_or_else(|| "none".into()),
+        );
+        meta.insert(
+            "snapshot_every_steps".into(),
+            sampling.every_steps.to_string(),
+        );
+        meta.insert(
+            "colour_scale".into(),
+            format!(
+                "log temperature: blue at {:?} K to red at {:?} K and above",
+                colours.theta_lo, colours.theta_hi
+            ),
+        );
+        writer.write_metadata(&Metadata {
+            name: RUN_METADATA.into(),
+            metadata: meta,
+        })?;
+        writer.attach(&mcap::Attachment {
+            log_time: 0,
+            create_time: 0,
+            name: SCENARIO_ATTACHMENT.into(),
+            media_type: "application/json".into(),
+            data: Cow::Owned(scenario.to_json().into_bytes()),
+        })?;
+
+        let no_meta = BTreeMap::new();
+        let scene = SceneUpdate::get_schema().context("foxglove.SceneUpdate schema")?;
+        let scene_id = writer.add_schema(&scene.name, &scene.encoding, &scene.data)?;
+        let log_schema = Log::get_schema().context("foxglove.Log schema")?;
+        let log_id = writer.add_schema(&log_schema.name, &log_schema.encoding, &log_schema.data)?;
+        let stats_id = writer.add_schema("agglo.Stats", "jsonschema", &Stats::schema_bytes())?;
+        let channels = Channels {
+            particles: writer.add_channel(scene_id, PARTICLES_TOPIC, "protobuf", &no_meta)?,
+            bbox: writer.add_channel(scene_id, BOX_TOPIC, "protobuf", &no_meta)?,
+            stats: writer.add_channel(stats_id, STATS_TOPIC, "json", &no_meta)?,
+            events: writer.add_channel(log_id, EVENTS_TOPIC, "protobuf", &no_meta)?,
+        };
+
+        let clock = sim.clock();
+        let mut recorder = Self {
+            writer,
+            path: path.to_path_buf(),
+            channels,
+            sequence: 0,
+            sampling,
+            colours,
+            last_time: clock.time,
+            last_step: clock.step,
+            shown: Vec::new(),
+            counters: sim.counters(),
+            pending: Pending {
+                since: clock.time,
+                ..Default::default()
+            },
+            violations_reported: 0,
+            report: RecordingReport::default(),
+            buf: Vec::new(),
+        };
+        recorder.write_box(sim)?;
+        recorder.event(
+            clock.time,
+            log::Level::Info,
+            format!(
+                "run started: scenario {} (seed {}), T = {:e} s, {} bodies; agglo {}",
+                scenario.name,
+                scenario.seed,
+                scenario.time.end,
+                scenario.cloud.count,
+                env!("CARGO_PKG_VERSION")
+            ),
+        )?;
+        recorder.snapshot(sim)?;
+        Ok(recorder)
+    }
+
+    /// The file being written.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Call after every step: notes warnings and records a snapshot when one is due.
+    pub fn observe(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        self.note_counters(sim)?;
+        let clock = sim.clock();
+        if self.sampling.due(clock.step, clock.time, self.last_time) {
+            self.snapshot(sim)?;
+        }
+        Ok(())
+    }
+
+    /// Record the last state (unless just recorded) and the outcome, write the summary
+    /// section and close the file. Call on success, error and interruption alike.
+    pub fn finish(
+        mut self,
+        sim: &Simulation,
+        outcome: &Result<(), SimError>,
+    ) -> anyhow::Result<RecordingReport> {
+        self.note_counters(sim)?;
+        let clock = sim.clock();
+        if clock.step != self.last_step || self.report.snapshots == 0 {
+            self.snapshot(sim)?;
+        } else {
+            self.flush_pending(clock.time)?;
+        }
+        let (status, level, message) = match outcome {
+            Ok(()) => (
+                "finished",
+                log::Level::Info,
+                format!(
+                    "run finished: t = {:e} s in {} steps",
+                    clock.time, clock.step
+                ),
+            ),
+            Err(e @ SimError::Interrupted { .. }) => {
+                ("interrupted", log::Level::Error, e.to_string())
+            }
+            Err(e) => ("failed", log::Level::Error, e.to_string()),
+        };
+        self.event(clock.time, level, message.clone())?;
+        let mut meta = BTreeMap::new();
+        meta.insert("status".into(), status.to_string());
+        meta.insert("message".into(), message);
+        meta.insert("steps".into(), clock.step.to_string());
+        meta.insert("time_s".into(), format!("{:?}", clock.time));
+        meta.insert("snapshots".into(), self.report.snapshots.to_string());
+        self.writer.write_metadata(&Metadata {
+            name: RESULT_METADATA.into(),
+            metadata: meta,
+        })?;
+        self.writer
+            .finish()
+            .with_context(|| format!("finalising recording {}", self.path.display()))?;
+        let file = self
+            .writer
+            .into_inner()
+            .into_inner()
+            .map_err(|e| e.into_error())
+            .with_context(|| format!("flushing recording {}", self.path.display()))?;
+        self.report.bytes = file.metadata().map(|m| m.len()).unwrap_or(0);
+        Ok(self.report)
+    }
+
+    fn header(&mut self, channel: u16, log_time: u64) -> MessageHeader {
+        self.sequence = self.sequence.wrapping_add(1);
+        MessageHeader {
+            channel_id: channel,
+            sequence: self.sequence,
+            log_time,
+            publish_time: log_time,
+        }
+    }
+
+    /// Encode `msg` and write it on `channel` at simulated time `t`.
+    fn write_proto<M: Encode>(&mut self, channel: u16, t: f64, msg: &M) -> anyhow::Result<()>
+    where
+        M::Error: Send + Sync + 'static,
+    {
+        self.buf.clear();
+        msg.encode(&mut self.buf)?;
+        let header = self.header(channel, self.sampling.log_time(t));
+        self.writer.write_to_known_channel(&header, &self.buf)?;
+        Ok(())
+    }
+
+    fn stamp(&self, t: f64) -> Timestamp {
+        let ns = self.sampling.log_time(t);
+        // Timestamps hold u32 seconds: saturate beyond 136 years of playback.
+        Timestamp::new_checked(
+            u32::try_from(ns / 1_000_000_000).unwrap_or(u32::MAX),
+            (ns % 1_000_000_000) as u32,
+        )
+        .unwrap_or(Timestamp::MAX)
+    }
+
+    fn event(&mut self, t: f64, level: log::Level, message: String) -> anyhow::Result<()> {
+        let msg = Log {
+            timestamp: Some(self.stamp(t)),
+            level: level as i32,
+            message,
+            name: LOG_NAME.into(),
+            file: String::new(),
+            line: 0,
+        };
+        self.report.events += 1;
+        self.write_proto(self.channels.events, t, &msg)
+    }
+
+    /// The periodic box [−D, D]³ as a line list of its 12 edges.
+    fn write_box(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        let d = sim
+            .world()
+            .get_resource::<BoxGeometry>()
+            .map(|g| g.half_width)
+            .unwrap_or(sim.scenario().domain.half_width);
+        let corner = |i: usize| Point3 {
+            x: if i & 1 == 0 { -d } else { d },
+            y: if i & 2 == 0 { -d } else { d },
+            z: if i & 4 == 0 { -d } else { d },
+        };
+        // Edges join corners differing in one bit.
+        let mut points = Vec::with_capacity(24);
+        for i in 0..8usize {
+            for bit in [1usize, 2, 4] {
+                if i & bit == 0 {
+                    points.push(corner(i));
+                    points.push(corner(i | bit));
+                }
+            }
+        }
+        let t = sim.clock().time;
+        let update = SceneUpdate {
+            deletions: Vec::new(),
+            entities: vec![SceneEntity {
+                timestamp: Some(self.stamp(t)),
+                frame_id: FRAME_ID.into(),
+                id: "box".into(),
+                lines: vec![LinePrimitive {
+                    r#type: line_primitive::Type::LineList as i32,
+                    pose: Some(identity_pose(0.0, 0.0, 0.0)),
+                    // Thickness in pixels (scale invariant): visible at any zoom.
+                    thickness: 2.0,
+                    scale_invariant: true,
+                    points,
+                    color: Some(Color {
+                        r: 0.8,
+                        g: 0.8,
+                        b: 0.8,
+                        a: 1.0,
+                    }),
+                    colors: Vec::new(),
+                    indices: Vec::new(),
+                }],
+                ..Default::default()
+            }],
+        };
+        self.write_proto(self.channels.bbox, t, &update)
+    }
+
+    /// Count new warnings; copy new invariant-violation descriptions to `/events` at once.
+    fn note_counters(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        let now = sim.counters();
+        let before = self.counters;
+        if now == before {
+            return Ok(());
+        }
+        let p = &mut self.pending;
+        p.fallbacks += now.fallbacks.saturating_sub(before.fallbacks);
+        p.unconverged += now.unconverged.saturating_sub(before.unconverged);
+        p.clamped_steps += now.clamped_steps.saturating_sub(before.clamped_steps);
+        p.overlap_violations += now
+            .overlap_violations
+            .saturating_sub(before.overlap_violations);
+        p.invariant_violations += now
+            .invariant_violations
+            .saturating_sub(before.invariant_violations);
+        self.counters = now;
+        if now.invariant_violations > before.invariant_violations
+            && self.violations_reported < MAX_VIOLATION_EVENTS
+        {
+            let report = sim.invariants();
+            let t = sim.clock().time;
+            let new: Vec<String> = report
+                .violations
+                .iter()
+                .skip(self.violations_reported)
+                .take(MAX_VIOLATION_EVENTS - self.violations_reported)
+                .cloned()
+                .collect();
+            for v in new {
+                self.violations_reported += 1;
+                self.event(t, log::Level::Warning, format!("invariant violation: {v}"))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// One aggregated warning per kind of counter that grew since the last snapshot.
+    fn flush_pending(&mut self, t: f64) -> anyhow::Result<()> {
+        let p = self.pending;
+        let c = self.counters;
+        let since = p.since;
+        let lines = [
+            (
+                p.fallbacks,
+                "impacts needed the bracketed fallback solver",
+                c.fallbacks,
+            ),
+            (
+                p.unconverged,
+                "impacts did not converge (plain solver, last iterate used)",
+                c.unconverged,
+            ),
+            (
+                p.clamped_steps,
+                "steps clamped at dt_min although a contact was due sooner",
+                c.clamped_steps,
+            ),
+            (
+                p.overlap_violations,
+                "approaching pairs found overlapping (missed contacts)",
+                c.overlap_violations,
+            ),
+            (
+                p.invariant_violations,
+                "invariant checks failed",
+                c.invariant_violations,
+            ),
+        ];
+        for (n, what, total) in lines {
+            if n > 0 {
+                self.event(
+                    t,
+                    log::Level::Warning,
+                    format!("{n} {what} since t = {since:e} s ({total} in total)"),
+                )?;
+            }
+        }
+        self.pending = Pending {
+            since: t,
+            ..Default::default()
+        };
+        Ok(())
+    }
+
+    /// Write `/particles` (with deletions of bodies gone since the last one) and `/stats`.
+    fn snapshot(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        let clock = sim.clock();
+        let t = clock.time;
+        let bodies = bodies_of(sim.world());
+        let stamp = self.stamp(t);
+
+        // Bodies with a non-finite centre or size cannot be drawn: leave them out (a
+        // NonFinite error reports them) and say so.
+        let (drawable, skipped): (Vec<&BodyState>, Vec<&BodyState>) = bodies
+            .iter()
+            .partition(|b| b.position.is_finite() && b.radius.is_finite() && b.radius > 0.0);
+        let ids: Vec<u64> = drawable.iter().map(|b| b.id).collect();
+        let deletions: Vec<SceneEntityDeletion> = sorted_difference(&self.shown, &ids)
+            .map(|id| SceneEntityDeletion {
+                timestamp: Some(stamp),
+                r#type: scene_entity_deletion::Type::MatchingId as i32,
+                id: id.to_string(),
+            })
+            .collect();
+        let entities: Vec<SceneEntity> = drawable
+            .iter()
+            .map(|b| {
+                let [r, g, bl] = self.colours.rgb(b.temperature);
+                let diameter = 2.0 * b.radius;
+                SceneEntity {
+                    timestamp: Some(stamp),
+                    frame_id: FRAME_ID.into(),
+                    id: b.id.to_string(),
+                    spheres: vec![SpherePrimitive {
+                        pose: Some(identity_pose(b.position.x, b.position.y, b.position.z)),
+                        size: Some(Vector3 {
+                            x: diameter,
+                            y: diameter,
+                            z: diameter,
+                        }),
+                        color: Some(Color {
+                            r,
+                            g,
+                            b: bl,
+                            a: 1.0,
+                        }),
+                    }],
+                    ..Default::default()
+                }
+            })
+            .collect();
+        self.report.deletions += deletions.len() as u64;
+        let update = SceneUpdate {
+            deletions,
+            entities,
+        };
+        self.write_proto(self.channels.particles, t, &update)?;
+        self.shown = ids;
+
+        let summary = Summary::new(sim, &bodies);
+        let stats = Stats::new(&summary, clock.dt);
+        self.buf.clear();
+        serde_json::to_writer(&mut self.buf, &stats)?;
+        let header = self.header(self.channels.stats, self.sampling.log_time(t));
+        self.writer.write_to_known_channel(&header, &self.buf)?;
+
+        if !skipped.is_empty() {
+            let list: Vec<String> = skipped.iter().take(10).map(|b| b.id.to_string()).collect();
+            self.event(
+                t,
+                log::Level::Error,
+                format!(
+                    "{} bodies with a non-finite position or size left out of /particles (ids {}{})",
+                    skipped.len(),
+                    list.join(", "),
+                    if skipped.len() > 10 { ", …" } else { "" }
+                ),
+            )?;
+        }
+        self.flush_pending(t)?;
+        self.last_time = t;
+        self.last_step = clock.step;
+        self.report.snapshots += 1;
+        Ok(())
+    }
+}
+
+fn identity_pose(x: f64, y: f64, z: f64) -> Pose {
+    Pose {
+        position: Some(Vector3 { x, y, z }),
+        orientation: Some(Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            w: 1.0,
+        }),
+    }
+}
+
+/// Elements of sorted `a` missing from sorted `b`, in order.
+fn sorted_difference<'a>(a: &'a [u64], b: &'a [u64]) -> impl Iterator<Item = u64> + 'a {
+    let mut j = 0;
+    a.iter().copied().filter(move |&x| {
+        while j < b.len() && b[j] < x {
+            j += 1;
+        }
+        !(j < b.len() && b[j] == x)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::sorted_difference;
+
+    #[test]
+    fn difference_of_sorted_ids() {
+        let gone: Vec<u64> = sorted_difference(&[1, 2, 3, 5, 8], &[2, 5, 6, 9]).collect();
+        assert_eq!(gone, vec![1, 3, 8]);
+        assert_eq!(sorted_difference(&[], &[1]).count(), 0);
+        assert_eq!(sorted_difference(&[4], &[]).collect::<Vec<_>>(), vec![4]);
+    }
+}
