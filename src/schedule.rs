@@ -362,9 +362,10 @@ impl Simulation {
         Ok(())
     }
 
-    /// Every body, sorted by stable id.
-    pub fn bodies(&mut self) -> Vec<BodyState> {
-        let mut query = self.world.query_filtered::<(
+    /// Every body, sorted by stable id (from a shared reference, so observers of
+    /// [`Simulation::run_with`] can read it).
+    pub fn bodies(&self) -> Vec<BodyState> {
+        let Some(mut query) = self.world.try_query_filtered::<(
             &ParticleId,
             &Position,
             &Velocity,
@@ -373,7 +374,9 @@ impl Simulation {
             &Temperature,
             &Hardness,
             &Primaries,
-        ), With<Particle>>();
+        ), With<Particle>>() else {
+            return Vec::new(); // components never registered: no particles
+        };
         let mut bodies: Vec<BodyState> = query
             .iter(&self.world)
             .map(|(id, p, v, m, b, t, h, n)| BodyState {
@@ -392,13 +395,14 @@ impl Simulation {
     }
 
     /// Number of bodies now.
-    pub fn body_count(&mut self) -> usize {
-        let mut query = self.world.query_filtered::<(), With<Particle>>();
-        query.iter(&self.world).count()
+    pub fn body_count(&self) -> usize {
+        self.world
+            .try_query_filtered::<(), With<Particle>>()
+            .map_or(0, |mut q| q.iter(&self.world).count())
     }
 
     /// Observables (MODEL.md §11), counters and invariant errors of the run so far.
-    pub fn summary(&mut self) -> Summary {
+    pub fn summary(&self) -> Summary {
         let bodies = self.bodies();
         Summary::new(self, &bodies)
     }

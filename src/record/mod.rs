@@ -34,12 +34,6 @@ pub use inspect::{Inspection, inspect, scenario_from_recording};
 pub use stats::Stats;
 pub use writer::{Recorder, RecordingReport};
 
-use bevy_ecs::prelude::*;
-
-use crate::components::{
-    BodyState, Hardness, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature,
-    Velocity,
-};
 use crate::scenario::Scenario;
 
 /// Topic of the bodies (`foxglove.SceneUpdate`).
@@ -160,39 +154,6 @@ impl ColourScale {
         // (1 − w) a + w b: exact at both stops.
         [0, 1, 2].map(|k| (1.0 - w) * a[k] + w * b[k])
     }
-}
-
-/// Every body of `world`, sorted by stable id. Like [`crate::schedule::Simulation::bodies`]
-/// but from a shared reference, so it can run inside `Simulation::run_with`'s observer.
-pub fn bodies_of(world: &World) -> Vec<BodyState> {
-    let Some(mut query) = world.try_query_filtered::<(
-        &ParticleId,
-        &Position,
-        &Velocity,
-        &Mass,
-        &Radius,
-        &Temperature,
-        &Hardness,
-        &Primaries,
-    ), With<Particle>>() else {
-        // Components not registered: a world without particles.
-        return Vec::new();
-    };
-    let mut bodies: Vec<BodyState> = query
-        .iter(world)
-        .map(|(id, p, v, m, b, t, h, n)| BodyState {
-            id: id.0,
-            position: p.0,
-            velocity: v.0,
-            mass: m.0,
-            radius: b.0,
-            temperature: t.0,
-            hardness: h.0,
-            primaries: n.0,
-        })
-        .collect();
-    bodies.sort_by_key(|b| b.id);
-    bodies
 }
 
 #[cfg(test)]

@@ -26,7 +26,7 @@ use mcap::records::{MessageHeader, Metadata};
 
 use super::{
     BOX_TOPIC, ColourScale, EVENTS_TOPIC, FRAME_ID, PARTICLES_TOPIC, RESULT_METADATA, RUN_METADATA,
-    SCENARIO_ATTACHMENT, STATS_TOPIC, Sampling, Stats, bodies_of,
+    SCENARIO_ATTACHMENT, STATS_TOPIC, Sampling, Stats,
 };
 use crate::components::BodyState;
 use crate::error::SimError;
@@ -466,7 +466,7 @@ impl Recorder {
     fn snapshot(&mut self, sim: &Simulation) -> anyhow::Result<()> {
         let clock = sim.clock();
         let t = clock.time;
-        let bodies = bodies_of(sim.world());
+        let bodies = sim.bodies();
         let stamp = self.stamp(t);
 
         // Bodies with a non-finite centre or size cannot be drawn: leave them out (a
