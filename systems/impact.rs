@@ -326,7 +326,7 @@ fn illinois(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64, tol: f64) -> (f64,
         }
         let mut x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
         // Keep the secant point strictly inside; bisect every 8th iteration for safety.
-        if !(x > lo && x < hi) || iterations % 8 == 0 {
+        if !(x > lo && x < hi) || iterations.is_multiple_of(8) {
             x = 0.5 * (lo + hi);
         }
         let fx = f(x);
@@ -364,7 +364,7 @@ pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3
         (0.5 * m * ((before - v_cm).length_squared() - (after - v_cm).length_squared())).max(0.0)
     };
     let bonded = fp.e <= 0.0;
-    let outcome = if bonded {
+    if bonded {
         // Bond: common velocity, all relative kinetic energy becomes heat (plus reaction heat at e = 0).
         let at_zero = trial(model, bi, bj, normal, 0.0);
         let dissipated = (0.5 * mi * bi.velocity.length_squared()
@@ -405,8 +405,7 @@ pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3
             fallback_iterations: fp.fallback_iterations,
             method: fp.method,
         }
-    };
-    outcome
+    }
 }
 
 /// Closed-form restitution for two identical spheres head on without softening
