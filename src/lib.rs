@@ -30,6 +30,7 @@ pub mod output;
 pub mod resources;
 pub mod scenario;
 pub mod schedule;
+pub mod study;
 
 #[path = "../systems/mod.rs"]
 pub mod systems;
