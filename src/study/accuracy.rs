@@ -131,6 +131,8 @@ pub struct Measurement {
     pub unconverged: u64,
     pub overlap_violations: u64,
     pub clamped_steps: u64,
+    /// Invariant checks that failed (e.g. θ ≤ 0 under explicit cooling).
+    pub invariant_violations: u64,
     /// Why the run stopped early, if it did (then the observables are those reached).
     pub failure: Option<String>,
 }
@@ -347,12 +349,37 @@ pub fn ladder(base: &Scenario, reference_steps: u64, options: &AccuracyOptions) 
         );
     }
     let n = dts.len();
-    for &dt in &[dts[n / 2], dts[n * 2 / 3], dts[n - 1]] {
+    for &dt in &dts[n / 2..] {
         push(
             Family::Papers,
             format!("nearest-neighbour dt = {dt:.3e} s"),
             dt,
             nn(with_fixed_dt(&reference, dt)),
+        );
+    }
+    // With a0 = 0 the plain iteration 2-cycles 0 ↔ 1 − λ below the critical speed
+    // (MODEL.md §5): the last iterate, hence bond or bounce, is set by the parity of
+    // the iteration cap. An odd cap shows the other branch.
+    let mut odd = plain(reference.clone());
+    odd.impact.max_iterations = 101;
+    push(
+        Family::Papers,
+        "plain iteration TOL = 5e-4 odd cap 101".into(),
+        0.0,
+        odd,
+    );
+    push(
+        Family::Papers,
+        "plain + nearest-neighbour c = 1".into(),
+        1.0,
+        plain(nn(p04_bounds(reference.clone()))),
+    );
+    for &dt in &dts[n / 2..] {
+        push(
+            Family::Papers,
+            format!("plain + nearest-neighbour dt = {dt:.3e} s"),
+            dt,
+            plain(nn(with_fixed_dt(&reference, dt))),
         );
     }
     let dt = dts[n * 2 / 3];
@@ -393,6 +420,7 @@ pub fn measure(scenario: &Scenario, repeats: usize) -> anyhow::Result<Measuremen
                 unconverged: s.counters.unconverged,
                 overlap_violations: s.counters.overlap_violations,
                 clamped_steps: s.counters.clamped_steps,
+                invariant_violations: s.counters.invariant_violations,
                 failure: outcome.err().map(|e| e.to_string()),
                 ..Default::default()
             });
@@ -501,7 +529,7 @@ pub fn run_accuracy(
 }
 
 /// Header of `accuracy.csv`.
-pub const ACCURACY_HEADER: [&str; 27] = [
+pub const ACCURACY_HEADER: [&str; 28] = [
     "family",
     "label",
     "parameter",
@@ -527,6 +555,7 @@ pub const ACCURACY_HEADER: [&str; 27] = [
     "unconverged",
     "overlap_violations",
     "clamped_steps",
+    "invariant_violations",
     "noise_growth_error",
     "noise_ks",
 ];
@@ -569,6 +598,7 @@ pub fn write_accuracy(dir: &Path, study: &AccuracyStudy) -> anyhow::Result<()> {
                 m.unconverged.to_string(),
                 m.overlap_violations.to_string(),
                 m.clamped_steps.to_string(),
+                m.invariant_violations.to_string(),
                 num(level.growth),
                 num(level.ks),
             ]

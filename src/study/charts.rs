@@ -108,7 +108,7 @@ impl AccuracyError<'_> {
             .chain([noise])
             .filter(|e| e.is_finite())
             .fold(floor * 10.0, f64::max)
-            * 3.0;
+            * 30.0; // headroom for the legend
         let walls: Vec<f64> = rows
             .iter()
             .map(|r| r.measurement.wall_seconds.max(1e-6))
@@ -154,8 +154,9 @@ impl AccuracyError<'_> {
             .zip(&walls)
             .map(|(r, &w)| (w, metric(r).max(floor)))
             .collect();
-        for family in Family::ALL {
+        for family in Family::ALL.iter().rev().copied() {
             let color = family_color(family);
+            let radius = if family == Family::Reference { 7 } else { 5 };
             let mut pts: Vec<(f64, f64)> = rows
                 .iter()
                 .zip(&points)
@@ -169,7 +170,7 @@ impl AccuracyError<'_> {
             let series = chart
                 .draw_series(
                     pts.iter()
-                        .map(|&p| Circle::new(p, 5, ShapeStyle::from(&color).filled())),
+                        .map(|&p| Circle::new(p, radius, ShapeStyle::from(&color).filled())),
                 )
                 .map_err(err)?;
             series.label(family_label(family)).legend(move |(x, y)| {
@@ -274,7 +275,7 @@ impl Figure for AccuracyGrowth<'_> {
             });
         let pad = 0.08 * (g1 - g0).max(0.05);
         g0 -= pad;
-        g1 += pad;
+        g1 += 6.0 * pad; // headroom for the legend
         let mut chart = ChartBuilder::on(area)
             .caption(
                 format!("{}: final b_f/b0 of each setting", s.scenario),
@@ -321,7 +322,7 @@ impl Figure for AccuracyGrowth<'_> {
                 .label(format!("published value {t}"))
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 15, y)], RED));
         }
-        for family in Family::ALL {
+        for family in Family::ALL.iter().rev().copied() {
             let color = family_color(family);
             let pts: Vec<(f64, f64)> = rows
                 .iter()

@@ -170,7 +170,7 @@ pub fn pair_map(setup: &PairSetup, grid: &PairGrid) -> Vec<PairCell> {
             let plain = find_fixed_point(&plain_model, g_of(&plain_model));
             let safe_model = setup.model(a0, 1e-12, 100, SolverKind::Safeguarded);
             let g = g_of(&safe_model);
-            let safeguarded = find_fixed_point(&safe_model, &g);
+            let safeguarded = find_fixed_point(&safe_model, g);
             let lambda = 2.0 * setup.rho * vp * vp / (3.0 * h);
             cells.push(PairCell {
                 a0,
