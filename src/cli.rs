@@ -40,6 +40,42 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Numerical studies: speed against accuracy, and where methods fail.
+    #[command(subcommand)]
+    Study(StudyCommand),
+}
+
+#[derive(Subcommand, Debug)]
+pub enum StudyCommand {
+    /// Run one scene under a ladder of numerical settings; write accuracy.csv and charts.
+    Accuracy {
+        /// Scenario file (JSON).
+        scenario: PathBuf,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Timed repeats per setting (median wall time), ≥ 1.
+        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
+        repeats: u32,
+        /// Seeds of the reference ensemble (noise band), ≥ 1.
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+        seeds: u32,
+        /// A published b_f/b0 to draw on the growth chart (e.g. 3.23 for P04).
+        #[arg(long)]
+        target_growth: Option<f64>,
+    },
+    /// Stability maps of the pair solve and cooling, and missed collisions against step size.
+    Stability {
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Scene of the step-size study (default: the built-in study scene).
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Seeds of the step-size study, ≥ 1.
+        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
+        seeds: u32,
+    },
 }
 
 #[derive(clap::Args, Debug)]
@@ -74,6 +110,7 @@ pub fn main() -> anyhow::Result<()> {
     match cli.command {
         Command::Run(args) => run(args),
         Command::Validate { scenario } => validate(&scenario),
+        Command::Study(study) => run_study(study),
         Command::Schema => {
             println!(
                 "{}",
@@ -258,4 +295,47 @@ fn print_report(s: &Summary) {
         s.max_energy_error,
         c.invariant_violations
     );
+}
+
+fn run_study(command: StudyCommand) -> anyhow::Result<()> {
+    use agglo::study::{accuracy, stability};
+    match command {
+        StudyCommand::Accuracy {
+            scenario,
+            out,
+            repeats,
+            seeds,
+            target_growth,
+        } => {
+            let base = load(&scenario)?;
+            let options = accuracy::AccuracyOptions {
+                repeats: repeats as usize,
+                seeds: seeds as usize,
+                target_growth,
+                ..Default::default()
+            };
+            let study = accuracy::run_accuracy(&base, &options, |line| eprintln!("{line}"))?;
+            accuracy::write_accuracy(&out, &study)?;
+            println!("wrote {}", out.join("accuracy.csv").display());
+        }
+        StudyCommand::Stability {
+            out,
+            scenario,
+            seeds,
+        } => {
+            let scene = match scenario {
+                Some(path) => load(&path)?,
+                None => Scenario::from_json(agglo::study::STUDY_SCENARIO)
+                    .context("the built-in study scene")?,
+            };
+            let options = stability::StabilityOptions {
+                seeds: seeds as usize,
+                ..Default::default()
+            };
+            let study = stability::run_stability(&scene, &options, |line| eprintln!("{line}"))?;
+            stability::write_stability(&out, &study)?;
+            println!("wrote {}", out.display());
+        }
+    }
+    Ok(())
 }

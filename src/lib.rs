@@ -31,6 +31,7 @@ pub mod record;
 pub mod resources;
 pub mod scenario;
 pub mod schedule;
+pub mod study;
 
 #[path = "../systems/mod.rs"]
 pub mod systems;

@@ -1,0 +1,657 @@
+//! The speed/accuracy ladder (`agglo study accuracy`).
+//!
+//! One scene, one seed, run under a ladder of numerical settings; each run is timed
+//! (median wall time of a few repeats; the runs are deterministic, so only the time
+//! varies) and compared with a resolved **reference**: adaptive steps with step
+//! factor c = 1 (no contact missed, MODEL.md §4), Δt_min = 1e-12 s so that no step
+//! is clamped by the papers' lower bound, and a tight fixed-point tolerance.
+//!
+//! Families (see [`Family`]): the adaptive step factor c, a geometric fixed-Δt ladder
+//! (contacts found only as overlaps at step ends), the fixed-point tolerance, the
+//! cooling integrator, and the papers' choices (nearest-neighbour contact rule, the
+//! P04 Δt bounds, coarse fixed steps, the plain iteration at P04's TOL = 5e-4).
+//!
+//! Errors against the reference: b_f/b0, final body count N, the Kolmogorov–Smirnov
+//! distance between the final radius distributions, total impacts and final mean
+//! temperature (all relative except KS), plus each run's own invariant errors. One
+//! seed is one realisation of a chaotic many-body system: any perturbation (a looser
+//! tolerance, a different step) leads to another realisation, so errors saturate at
+//! the seed-to-seed spread. The reference is therefore also run over a few seeds;
+//! the mean error of those realisations against the reference seed is the **noise
+//! level**: an error below it reads as "within noise".
+
+use std::path::Path;
+
+use crate::prelude::*;
+use crate::scenario::{ContactRule, CoolingMethod, SolverKind, Stepping};
+
+use super::{ks_distance, mean_std, median, num, relative_error, write_csv};
+
+/// Fixed-point tolerance of the reference run.
+pub const REFERENCE_TOL: f64 = 1e-14;
+/// Δt_min of the reference run [s]: far below any step the scene needs, so never binding
+/// except to process a deferred contact (t_c = 0).
+pub const REFERENCE_DT_MIN: f64 = 1e-12;
+/// P04's fixed-point tolerance (MODEL.md §13).
+pub const P04_TOL: f64 = 5e-4;
+/// Most steps a fixed-Δt rung may take (keeps the fine end of the ladder affordable).
+pub const MAX_FIXED_STEPS: f64 = 400_000.0;
+
+/// A family of numerical settings (one chart series).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Family {
+    Reference,
+    /// Adaptive step, step factor c.
+    Adaptive,
+    /// Fixed Δt.
+    FixedDt,
+    /// Fixed-point tolerance TOL.
+    Tolerance,
+    /// Cooling integrator.
+    Cooling,
+    /// The papers' numerical choices.
+    Papers,
+}
+
+impl Family {
+    pub const ALL: [Family; 6] = [
+        Family::Reference,
+        Family::Adaptive,
+        Family::FixedDt,
+        Family::Tolerance,
+        Family::Cooling,
+        Family::Papers,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::Reference => "reference",
+            Family::Adaptive => "adaptive_c",
+            Family::FixedDt => "fixed_dt",
+            Family::Tolerance => "tolerance",
+            Family::Cooling => "cooling",
+            Family::Papers => "papers",
+        }
+    }
+}
+
+/// One rung of the ladder.
+#[derive(Debug, Clone)]
+pub struct Variant {
+    pub family: Family,
+    /// Human-readable setting, e.g. "c = 10" (no commas: it goes into a CSV).
+    pub label: String,
+    /// The family's numeric parameter (c, Δt [s], TOL; 0 where none).
+    pub parameter: f64,
+    pub scenario: Scenario,
+}
+
+/// Knobs of the study.
+#[derive(Debug, Clone)]
+pub struct AccuracyOptions {
+    /// Timed repeats per setting (median wall time reported).
+    pub repeats: usize,
+    /// Seeds of the reference ensemble (the scenario's own seed included).
+    pub seeds: usize,
+    /// Rungs of the fixed-Δt ladder.
+    pub fixed_levels: usize,
+    /// A published b_f/b0 to mark on the growth chart (e.g. P04's 3.23).
+    pub target_growth: Option<f64>,
+}
+
+impl Default for AccuracyOptions {
+    fn default() -> Self {
+        Self {
+            repeats: 3,
+            seeds: 5,
+            fixed_levels: 10,
+            target_growth: None,
+        }
+    }
+}
+
+/// What one setting produced.
+#[derive(Debug, Clone, Default)]
+pub struct Measurement {
+    /// Median / min / max wall time of the repeats [s].
+    pub wall_seconds: f64,
+    pub wall_min: f64,
+    pub wall_max: f64,
+    pub steps: u64,
+    pub growth_ratio: f64,
+    pub final_bodies: usize,
+    pub impacts: u64,
+    pub mean_temperature: f64,
+    /// Final radii over b0.
+    pub radii: Vec<f64>,
+    pub max_mass_error: f64,
+    pub max_momentum_error: f64,
+    pub max_energy_error: f64,
+    pub fallbacks: u64,
+    pub unconverged: u64,
+    pub overlap_violations: u64,
+    pub clamped_steps: u64,
+    /// Invariant checks that failed (e.g. θ ≤ 0 under explicit cooling).
+    pub invariant_violations: u64,
+    /// Why the run stopped early, if it did (then the observables are those reached).
+    pub failure: Option<String>,
+}
+
+/// Errors of a measurement against the reference.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Errors {
+    pub growth: f64,
+    pub count: f64,
+    pub ks: f64,
+    pub impacts: f64,
+    pub temperature: f64,
+}
+
+impl Errors {
+    pub fn between(m: &Measurement, reference: &Measurement) -> Self {
+        Self {
+            growth: relative_error(m.growth_ratio, reference.growth_ratio),
+            count: relative_error(m.final_bodies as f64, reference.final_bodies as f64),
+            ks: ks_distance(&m.radii, &reference.radii),
+            impacts: relative_error(m.impacts as f64, reference.impacts as f64),
+            temperature: relative_error(m.mean_temperature, reference.mean_temperature),
+        }
+    }
+}
+
+/// One row of `accuracy.csv`.
+#[derive(Debug, Clone)]
+pub struct Row {
+    pub family: Family,
+    pub label: String,
+    pub parameter: f64,
+    pub measurement: Measurement,
+    pub errors: Errors,
+}
+
+impl Row {
+    pub fn failed(&self) -> bool {
+        self.measurement.failure.is_some()
+    }
+}
+
+/// The reference over several seeds.
+#[derive(Debug, Clone, Default)]
+pub struct NoiseBand {
+    pub seeds: Vec<u64>,
+    pub measurements: Vec<Measurement>,
+    /// Each other seed's errors against the reference seed.
+    pub errors: Vec<Errors>,
+    /// Mean of `errors` per observable: the noise level.
+    pub level: Errors,
+    /// Mean and standard deviation of b_f/b0 over all seeds.
+    pub growth_mean: f64,
+    pub growth_std: f64,
+}
+
+/// The study's results.
+#[derive(Debug, Clone)]
+pub struct AccuracyStudy {
+    pub scenario: String,
+    pub rows: Vec<Row>,
+    pub noise: NoiseBand,
+    pub target_growth: Option<f64>,
+}
+
+impl AccuracyStudy {
+    pub fn reference(&self) -> &Row {
+        &self.rows[0]
+    }
+}
+
+/// The resolved reference setting of `base`.
+pub fn reference_scenario(base: &Scenario) -> Scenario {
+    let mut s = base.clone();
+    let (dt_max, skin) = match base.time.stepping {
+        Stepping::Adaptive { dt_max, skin, .. } => (dt_max, skin),
+        Stepping::Fixed { .. } => (1e-3, 1.0),
+    };
+    s.time.stepping = Stepping::Adaptive {
+        step_factor: 1.0,
+        dt_min: REFERENCE_DT_MIN,
+        dt_max,
+        skin,
+    };
+    s.impact.tol = REFERENCE_TOL;
+    s.impact.solver = SolverKind::Safeguarded;
+    s.physics.contact_rule = ContactRule::All;
+    if s.physics.cooling == CoolingMethod::Explicit {
+        s.physics.cooling = CoolingMethod::Implicit;
+    }
+    // The study measures the numerics; output files and recordings are not wanted.
+    s.output = Default::default();
+    s
+}
+
+fn with_step_factor(reference: &Scenario, c: f64) -> Scenario {
+    let mut s = reference.clone();
+    if let Stepping::Adaptive { step_factor, .. } = &mut s.time.stepping {
+        *step_factor = c;
+    }
+    s
+}
+
+fn with_fixed_dt(reference: &Scenario, dt: f64) -> Scenario {
+    let mut s = reference.clone();
+    s.time.stepping = Stepping::Fixed { dt };
+    s
+}
+
+/// Geometric fixed-Δt ladder from fine to coarse: from T / (8 × the reference's steps)
+/// (capped at [`MAX_FIXED_STEPS`] steps) to T / 10.
+pub fn fixed_ladder(end: f64, reference_steps: u64, levels: usize) -> Vec<f64> {
+    let coarse = end / 10.0;
+    let fine = (end / (8.0 * reference_steps.max(1) as f64))
+        .max(end / MAX_FIXED_STEPS)
+        .min(coarse);
+    if levels <= 1 {
+        return vec![coarse];
+    }
+    let ratio = (coarse / fine).powf(1.0 / (levels - 1) as f64);
+    (0..levels).map(|k| fine * ratio.powi(k as i32)).collect()
+}
+
+/// The ladder for `base`, given the reference's step count (which sets the fixed-Δt range).
+pub fn ladder(base: &Scenario, reference_steps: u64, options: &AccuracyOptions) -> Vec<Variant> {
+    let reference = reference_scenario(base);
+    let end = reference.time.end;
+    let mut v = Vec::new();
+    let mut push = |family, label: String, parameter, scenario| {
+        v.push(Variant {
+            family,
+            label,
+            parameter,
+            scenario,
+        })
+    };
+    for c in [2.0, 5.0, 10.0, 30.0, 100.0] {
+        push(
+            Family::Adaptive,
+            format!("c = {c}"),
+            c,
+            with_step_factor(&reference, c),
+        );
+    }
+    let dts = fixed_ladder(end, reference_steps, options.fixed_levels);
+    for &dt in &dts {
+        push(
+            Family::FixedDt,
+            format!("dt = {dt:.3e} s"),
+            dt,
+            with_fixed_dt(&reference, dt),
+        );
+    }
+    for tol in [1e-1, 1e-2, P04_TOL, 1e-6, 1e-9, 1e-12] {
+        let mut s = reference.clone();
+        s.impact.tol = tol;
+        push(Family::Tolerance, format!("TOL = {tol:e}"), tol, s);
+    }
+    // The cooling integrators at the reference step and at a coarse fixed step.
+    let coarse_dt = dts[dts.len() * 2 / 3];
+    for (method, name) in [
+        (CoolingMethod::Explicit, "explicit"),
+        (CoolingMethod::Implicit, "implicit"),
+    ] {
+        if method != CoolingMethod::Implicit {
+            let mut s = reference.clone();
+            s.physics.cooling = method;
+            push(Family::Cooling, format!("{name} adaptive c = 1"), 0.0, s);
+        }
+        let mut s = with_fixed_dt(&reference, coarse_dt);
+        s.physics.cooling = method;
+        push(
+            Family::Cooling,
+            format!("{name} dt = {coarse_dt:.3e} s"),
+            coarse_dt,
+            s,
+        );
+    }
+    // The papers' choices, alone and together.
+    let nn = |mut s: Scenario| {
+        s.physics.contact_rule = ContactRule::NearestNeighbour;
+        s
+    };
+    let p04_bounds = |mut s: Scenario| {
+        if let Stepping::Adaptive { dt_min, dt_max, .. } = &mut s.time.stepping {
+            *dt_min = 1e-8;
+            *dt_max = 1e-3;
+        }
+        s
+    };
+    let plain = |mut s: Scenario| {
+        s.impact.solver = SolverKind::Plain;
+        s.impact.tol = P04_TOL;
+        s
+    };
+    push(
+        Family::Papers,
+        "P04 dt bounds [1e-8 1e-3] s c = 1".into(),
+        1.0,
+        p04_bounds(reference.clone()),
+    );
+    push(
+        Family::Papers,
+        "plain iteration TOL = 5e-4".into(),
+        0.0,
+        plain(reference.clone()),
+    );
+    for c in [1.0, 10.0] {
+        push(
+            Family::Papers,
+            format!("nearest-neighbour c = {c}"),
+            c,
+            nn(p04_bounds(with_step_factor(&reference, c))),
+        );
+    }
+    let n = dts.len();
+    for &dt in &dts[n / 2..] {
+        push(
+            Family::Papers,
+            format!("nearest-neighbour dt = {dt:.3e} s"),
+            dt,
+            nn(with_fixed_dt(&reference, dt)),
+        );
+    }
+    // With a0 = 0 the plain iteration 2-cycles 0 ↔ 1 − λ below the critical speed
+    // (MODEL.md §5): the last iterate, hence bond or bounce, is set by the parity of
+    // the iteration cap. An odd cap shows the other branch.
+    let mut odd = plain(reference.clone());
+    odd.impact.max_iterations = 101;
+    push(
+        Family::Papers,
+        "plain iteration TOL = 5e-4 odd cap 101".into(),
+        0.0,
+        odd,
+    );
+    push(
+        Family::Papers,
+        "plain + nearest-neighbour c = 1".into(),
+        1.0,
+        plain(nn(p04_bounds(reference.clone()))),
+    );
+    for &dt in &dts[n / 2..] {
+        push(
+            Family::Papers,
+            format!("plain + nearest-neighbour dt = {dt:.3e} s"),
+            dt,
+            plain(nn(with_fixed_dt(&reference, dt))),
+        );
+    }
+    let dt = dts[n * 2 / 3];
+    let mut all = plain(nn(with_fixed_dt(&reference, dt)));
+    all.physics.cooling = CoolingMethod::Explicit;
+    push(
+        Family::Papers,
+        format!("all papers' choices dt = {dt:.3e} s"),
+        dt,
+        all,
+    );
+    v
+}
+
+/// Run `scenario` `repeats` times (≥ 1); observables from the first run, the median time.
+pub fn measure(scenario: &Scenario, repeats: usize) -> anyhow::Result<Measurement> {
+    let mut walls = Vec::new();
+    let mut first: Option<Measurement> = None;
+    for _ in 0..repeats.max(1) {
+        let mut sim = Simulation::new(scenario)?;
+        let outcome = sim.run();
+        walls.push(sim.wall_seconds());
+        if first.is_none() {
+            let s = sim.summary();
+            let b0 = sim.material().primary_radius;
+            let bodies = sim.bodies();
+            first = Some(Measurement {
+                steps: s.steps,
+                growth_ratio: s.growth.growth_ratio,
+                final_bodies: s.final_bodies,
+                impacts: s.counters.impacts,
+                mean_temperature: s.mean_temperature,
+                radii: bodies.iter().map(|b| b.radius / b0).collect(),
+                max_mass_error: s.max_mass_error,
+                max_momentum_error: s.max_momentum_error,
+                max_energy_error: s.max_energy_error,
+                fallbacks: s.counters.fallbacks,
+                unconverged: s.counters.unconverged,
+                overlap_violations: s.counters.overlap_violations,
+                clamped_steps: s.counters.clamped_steps,
+                invariant_violations: s.counters.invariant_violations,
+                failure: outcome.err().map(|e| e.to_string()),
+                ..Default::default()
+            });
+        }
+        // A failed run is not worth timing again.
+        if first.as_ref().is_some_and(|m| m.failure.is_some()) {
+            break;
+        }
+    }
+    let mut m = first.unwrap_or_default();
+    m.wall_seconds = median(&walls);
+    m.wall_min = walls.iter().copied().fold(f64::INFINITY, f64::min);
+    m.wall_max = walls.iter().copied().fold(0.0, f64::max);
+    Ok(m)
+}
+
+/// Run the whole study on `base`; `progress` receives one line per finished run.
+pub fn run_accuracy(
+    base: &Scenario,
+    options: &AccuracyOptions,
+    mut progress: impl FnMut(&str),
+) -> anyhow::Result<AccuracyStudy> {
+    let reference_s = reference_scenario(base);
+    let reference = measure(&reference_s, options.repeats)?;
+    if let Some(f) = &reference.failure {
+        anyhow::bail!("the reference run failed: {f}");
+    }
+    progress(&format!(
+        "reference: {} steps, b_f/b0 = {:.4}, N = {}, {:.3} s",
+        reference.steps, reference.growth_ratio, reference.final_bodies, reference.wall_seconds
+    ));
+
+    // Noise band: the reference over other seeds.
+    let mut noise = NoiseBand {
+        seeds: vec![base.seed],
+        measurements: vec![reference.clone()],
+        ..Default::default()
+    };
+    for k in 1..options.seeds.max(1) {
+        let mut s = reference_s.clone();
+        s.seed = base.seed.wrapping_add(k as u64);
+        let m = measure(&s, 1)?;
+        let e = Errors::between(&m, &reference);
+        progress(&format!(
+            "reference seed {}: b_f/b0 = {:.4}, N = {}",
+            s.seed, m.growth_ratio, m.final_bodies
+        ));
+        noise.seeds.push(s.seed);
+        noise.errors.push(e);
+        noise.measurements.push(m);
+    }
+    let avg = |f: fn(&Errors) -> f64| {
+        if noise.errors.is_empty() {
+            0.0
+        } else {
+            noise.errors.iter().map(f).sum::<f64>() / noise.errors.len() as f64
+        }
+    };
+    noise.level = Errors {
+        growth: avg(|e| e.growth),
+        count: avg(|e| e.count),
+        ks: avg(|e| e.ks),
+        impacts: avg(|e| e.impacts),
+        temperature: avg(|e| e.temperature),
+    };
+    let growths: Vec<f64> = noise.measurements.iter().map(|m| m.growth_ratio).collect();
+    (noise.growth_mean, noise.growth_std) = mean_std(&growths);
+
+    let mut rows = vec![Row {
+        family: Family::Reference,
+        label: "reference".into(),
+        parameter: 1.0,
+        errors: Errors::between(&reference, &reference),
+        measurement: reference.clone(),
+    }];
+    for variant in ladder(base, reference.steps, options) {
+        let m = measure(&variant.scenario, options.repeats)?;
+        let errors = Errors::between(&m, &reference);
+        progress(&format!(
+            "{} {}: {} steps, b_f/b0 = {:.4}, error {:.2e}, {:.3} s{}",
+            variant.family.name(),
+            variant.label,
+            m.steps,
+            m.growth_ratio,
+            errors.growth,
+            m.wall_seconds,
+            m.failure
+                .as_deref()
+                .map(|f| format!(" FAILED: {f}"))
+                .unwrap_or_default()
+        ));
+        rows.push(Row {
+            family: variant.family,
+            label: variant.label,
+            parameter: variant.parameter,
+            measurement: m,
+            errors,
+        });
+    }
+    Ok(AccuracyStudy {
+        scenario: base.name.clone(),
+        rows,
+        noise,
+        target_growth: options.target_growth,
+    })
+}
+
+/// Header of `accuracy.csv`.
+pub const ACCURACY_HEADER: [&str; 28] = [
+    "family",
+    "label",
+    "parameter",
+    "status",
+    "wall_seconds",
+    "wall_min",
+    "wall_max",
+    "steps",
+    "growth_ratio",
+    "final_bodies",
+    "impacts",
+    "mean_temperature",
+    "growth_error",
+    "count_error",
+    "ks_distance",
+    "impacts_error",
+    "temperature_error",
+    "within_noise",
+    "max_mass_error",
+    "max_momentum_error",
+    "max_energy_error",
+    "fallbacks",
+    "unconverged",
+    "overlap_violations",
+    "clamped_steps",
+    "invariant_violations",
+    "noise_growth_error",
+    "noise_ks",
+];
+
+/// Write `accuracy.csv`, `noise.csv` and the charts into `dir`.
+pub fn write_accuracy(dir: &Path, study: &AccuracyStudy) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+    let level = study.noise.level;
+    let rows: Vec<Vec<String>> = study
+        .rows
+        .iter()
+        .map(|r| {
+            let m = &r.measurement;
+            let e = &r.errors;
+            let within = !r.failed() && e.growth <= level.growth && e.ks <= level.ks;
+            vec![
+                r.family.name().into(),
+                r.label.clone(),
+                num(r.parameter),
+                if r.failed() { "failed" } else { "ok" }.into(),
+                num(m.wall_seconds),
+                num(m.wall_min),
+                num(m.wall_max),
+                m.steps.to_string(),
+                num(m.growth_ratio),
+                m.final_bodies.to_string(),
+                m.impacts.to_string(),
+                num(m.mean_temperature),
+                num(e.growth),
+                num(e.count),
+                num(e.ks),
+                num(e.impacts),
+                num(e.temperature),
+                within.to_string(),
+                num(m.max_mass_error),
+                num(m.max_momentum_error),
+                num(m.max_energy_error),
+                m.fallbacks.to_string(),
+                m.unconverged.to_string(),
+                m.overlap_violations.to_string(),
+                m.clamped_steps.to_string(),
+                m.invariant_violations.to_string(),
+                num(level.growth),
+                num(level.ks),
+            ]
+        })
+        .collect();
+    write_csv(&dir.join("accuracy.csv"), &ACCURACY_HEADER, &rows)?;
+
+    let noise_rows: Vec<Vec<String>> = study
+        .noise
+        .seeds
+        .iter()
+        .zip(&study.noise.measurements)
+        .enumerate()
+        .map(|(k, (seed, m))| {
+            let e = if k == 0 {
+                Errors::default()
+            } else {
+                study.noise.errors[k - 1]
+            };
+            vec![
+                seed.to_string(),
+                num(m.wall_seconds),
+                m.steps.to_string(),
+                num(m.growth_ratio),
+                m.final_bodies.to_string(),
+                m.impacts.to_string(),
+                num(m.mean_temperature),
+                num(e.growth),
+                num(e.count),
+                num(e.ks),
+                num(e.impacts),
+                num(e.temperature),
+            ]
+        })
+        .collect();
+    write_csv(
+        &dir.join("noise.csv"),
+        &[
+            "seed",
+            "wall_seconds",
+            "steps",
+            "growth_ratio",
+            "final_bodies",
+            "impacts",
+            "mean_temperature",
+            "growth_error",
+            "count_error",
+            "ks_distance",
+            "impacts_error",
+            "temperature_error",
+        ],
+        &noise_rows,
+    )?;
+    super::charts::accuracy_charts(dir, study)?;
+    Ok(())
+}
