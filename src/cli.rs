@@ -10,6 +10,8 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod inverse;
+
 use agglo::output::{write_final_state, write_summary};
 use agglo::prelude::*;
 
@@ -32,6 +34,10 @@ pub enum Command {
     },
     /// Print the JSON Schema of the scenario format.
     Schema,
+    /// Solve an inverse problem: genetic algorithm over ensemble-averaged costs (MODEL.md §12).
+    Optimize(inverse::OptimizeArgs),
+    /// Scan one scenario field of an inverse problem's base scenario (ensemble cost per point).
+    Scan(inverse::ScanArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -65,6 +71,8 @@ pub fn main() -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::Optimize(args) => inverse::optimize(args),
+        Command::Scan(args) => inverse::scan(args),
     }
 }
 
