@@ -88,6 +88,7 @@ pub fn optimize(args: OptimizeArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let evals = AtomicU64::new(0);
     let samples = AtomicU64::new(0);
+    let generations_run = AtomicU64::new(0);
     let best = std::sync::Mutex::new((f64::NAN, f64::NAN));
     let generations = ga.generations;
     let on_event = |e: Event| {
@@ -115,9 +116,11 @@ pub fn optimize(args: OptimizeArgs) -> anyhow::Result<()> {
             }
             Event::GenerationDone(row) => {
                 *best.lock().unwrap_or_else(|p| p.into_inner()) = (row.best_cost, row.mean_top_k);
+                // ETA from this process's pace (a resumed run started later than generation 0).
                 let t = start.elapsed().as_secs_f64();
-                let done = row.generation + 1;
-                let eta = t / done as f64 * (generations.saturating_sub(done)) as f64;
+                let ran = generations_run.fetch_add(1, Ordering::Relaxed) + 1;
+                let left = generations.saturating_sub(row.generation + 1);
+                let eta = t / ran as f64 * left as f64;
                 bar.println(format!(
                     "generation {:>3}: best {:.6e}, mean top K {:.6e}, {} strings, {:.1} samples/string, ETA ≤ {:.0} s",
                     row.generation,

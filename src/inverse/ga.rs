@@ -171,12 +171,12 @@ pub fn step(
     state.history.push(row.clone());
     state.generations_done += 1;
 
-    if spec.rescale_every > 0 && state.generations_done % spec.rescale_every == 0 {
+    if spec.rescale_every > 0 && state.generations_done.is_multiple_of(spec.rescale_every) {
         let best = &state.parents[0].genes;
-        for j in 0..best.len() {
+        for (j, &x) in best.iter().enumerate() {
             let half = 0.5 * (state.upper[j] - state.lower[j]) * spec.shrink;
-            state.lower[j] = (best[j] - half).max(original.0[j]);
-            state.upper[j] = (best[j] + half).min(original.1[j]);
+            state.lower[j] = (x - half).max(original.0[j]);
+            state.upper[j] = (x + half).min(original.1[j]);
         }
     }
     let watched = match spec.stop_on {

@@ -49,7 +49,8 @@ pub enum Event<'a> {
     GenerationDone(&'a GenerationRow),
 }
 
-/// How to run an inverse problem.
+/// How to run an inverse problem (`Default`: all cores, fresh run, no progress).
+#[derive(Default)]
 pub struct Options<'a> {
     /// Worker threads (0 = one per core).
     pub threads: usize,
@@ -60,18 +61,6 @@ pub struct Options<'a> {
     /// Set to stop between samples (Ctrl-C).
     pub cancel: Option<&'a AtomicBool>,
     pub progress: Option<&'a (dyn Fn(Event) + Sync)>,
-}
-
-impl Default for Options<'_> {
-    fn default() -> Self {
-        Self {
-            threads: 0,
-            resume: false,
-            stop_after: None,
-            cancel: None,
-            progress: None,
-        }
-    }
 }
 
 fn pool(threads: usize) -> Result<rayon::ThreadPool, InverseError> {

@@ -457,7 +457,7 @@ impl InverseProblem {
                 format!("allowed S ≥ 2 (got {})", ga.strings),
             );
         }
-        if ga.parents < 2 || ga.parents % 2 != 0 || 2 * ga.parents > ga.strings {
+        if ga.parents < 2 || !ga.parents.is_multiple_of(2) || 2 * ga.parents > ga.strings {
             push(
                 "ga.parents".into(),
                 format!(
