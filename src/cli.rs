@@ -10,6 +10,8 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod inverse;
+
 use agglo::output::{write_final_state, write_summary};
 use agglo::prelude::*;
 
@@ -43,6 +45,10 @@ pub enum Command {
     /// Numerical studies: speed against accuracy, and where methods fail.
     #[command(subcommand)]
     Study(StudyCommand),
+    /// Solve an inverse problem: genetic algorithm over ensemble-averaged costs (MODEL.md §12).
+    Optimize(inverse::OptimizeArgs),
+    /// Scan one scenario field of an inverse problem's base scenario (ensemble cost per point).
+    Scan(inverse::ScanArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -127,6 +133,8 @@ pub fn main() -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::Optimize(args) => inverse::optimize(args),
+        Command::Scan(args) => inverse::scan(args),
     }
 }
 

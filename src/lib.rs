@@ -25,6 +25,7 @@ pub mod charts;
 pub mod cloud;
 pub mod components;
 pub mod error;
+pub mod inverse;
 pub mod observables;
 pub mod output;
 pub mod record;

@@ -1,0 +1,253 @@
+//! `agglo optimize` and `agglo scan`: thin handlers over [`agglo::inverse`].
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use agglo::inverse::{self, Event, InverseProblem, Options};
+
+#[derive(clap::Args, Debug)]
+pub struct OptimizeArgs {
+    /// Inverse-problem file (JSON).
+    pub problem: PathBuf,
+    /// Output directory (generations.csv, best.json, best_scenario.json, charts, checkpoint.json).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Continue the run checkpointed in --out.
+    #[arg(long)]
+    pub resume: bool,
+    /// Worker threads (default: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// No progress display and no report.
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Stop after this many generations (the run can be continued with --resume).
+    #[arg(long, hide = true)]
+    pub stop_after: Option<usize>,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct ScanArgs {
+    /// Inverse-problem file (JSON): its base scenario, end-time rule, cost and ensemble rule are used.
+    pub problem: PathBuf,
+    /// Scenario field to scan (dotted path, e.g. `box.half_width`).
+    #[arg(long)]
+    pub gene: String,
+    #[arg(long)]
+    pub from: f64,
+    #[arg(long)]
+    pub to: f64,
+    /// Number of points (≥ 2).
+    #[arg(long, default_value_t = 9)]
+    pub points: usize,
+    /// Space the points logarithmically.
+    #[arg(long)]
+    pub log: bool,
+    /// Output directory (scan.csv, scan.png/svg).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+fn load(path: &Path) -> anyhow::Result<InverseProblem> {
+    InverseProblem::load(path)
+        .with_context(|| format!("loading inverse problem {}", path.display()))
+}
+
+fn interrupt_flag() -> Arc<AtomicBool> {
+    let flag = Arc::new(AtomicBool::new(false));
+    let f = flag.clone();
+    // A second handler cannot be installed (e.g. in tests); the run still works without one.
+    let _ = ctrlc::set_handler(move || f.store(true, Ordering::SeqCst));
+    flag
+}
+
+pub fn optimize(args: OptimizeArgs) -> anyhow::Result<()> {
+    let problem = load(&args.problem)?;
+    let ga = &problem.spec.ga;
+    let cancel = interrupt_flag();
+    let show = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let bar = show.then(|| {
+        let bar = ProgressBar::new(0);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "[{elapsed_precise}] gen {prefix} {bar:30} {pos}/{len} strings  {msg}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let start = Instant::now();
+    let evals = AtomicU64::new(0);
+    let samples = AtomicU64::new(0);
+    let generations_run = AtomicU64::new(0);
+    let best = std::sync::Mutex::new((f64::NAN, f64::NAN));
+    let generations = ga.generations;
+    let on_event = |e: Event| {
+        let Some(bar) = &bar else { return };
+        match e {
+            Event::GenerationStarted {
+                generation,
+                strings,
+            } => {
+                bar.set_prefix(format!("{}/{generations}", generation + 1));
+                bar.set_length(strings as u64);
+                bar.set_position(0);
+            }
+            Event::StringDone { samples: s, .. } => {
+                let n = evals.fetch_add(1, Ordering::Relaxed) + 1;
+                let total_samples = samples.fetch_add(s as u64, Ordering::Relaxed) + s as u64;
+                bar.inc(1);
+                let t = start.elapsed().as_secs_f64();
+                let (b, m) = *best.lock().unwrap_or_else(|p| p.into_inner());
+                bar.set_message(format!(
+                    "best {b:.5e}  mean top K {m:.5e}  samples/string {:.1}  {:.2} evals/s",
+                    total_samples as f64 / n as f64,
+                    n as f64 / t.max(1e-9),
+                ));
+            }
+            Event::GenerationDone(row) => {
+                *best.lock().unwrap_or_else(|p| p.into_inner()) = (row.best_cost, row.mean_top_k);
+                // ETA from this process's pace (a resumed run started later than generation 0).
+                let t = start.elapsed().as_secs_f64();
+                let ran = generations_run.fetch_add(1, Ordering::Relaxed) + 1;
+                let left = generations.saturating_sub(row.generation + 1);
+                let eta = t / ran as f64 * left as f64;
+                bar.println(format!(
+                    "generation {:>3}: best {:.6e}, mean top K {:.6e}, {} strings, {:.1} samples/string, ETA ≤ {:.0} s",
+                    row.generation,
+                    row.best_cost,
+                    row.mean_top_k,
+                    row.evaluations,
+                    row.samples as f64 / row.evaluations.max(1) as f64,
+                    eta
+                ));
+            }
+        }
+    };
+    let options = Options {
+        threads: args.threads,
+        resume: args.resume,
+        stop_after: args.stop_after,
+        cancel: Some(&cancel),
+        progress: Some(&on_event),
+    };
+    let result = inverse::optimize(&problem, &args.out, &options);
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let state = result.with_context(|| format!("optimising {}", args.problem.display()))?;
+    if !args.quiet {
+        let names = problem.gene_names();
+        if let Some(b) = state.best() {
+            println!(
+                "{}: {} generations, {} strings evaluated, {:.1} s wall{}",
+                problem.spec.name,
+                state.generations_done,
+                state.total_evaluations,
+                start.elapsed().as_secs_f64(),
+                if state.finished {
+                    ""
+                } else {
+                    " (not finished: continue with --resume)"
+                }
+            );
+            println!(
+                "  best cost {:.6e}, b_f/b0 = {:.4}, n_f = {:.3}, {} samples",
+                b.eval.cost,
+                b.eval.means.mean,
+                b.eval.means.mean.powi(3),
+                b.eval.samples
+            );
+            for (n, x) in names.iter().zip(&b.genes) {
+                println!("  {n:>12} = {x:.6e}");
+            }
+            println!("  outputs in {}", args.out.display());
+        }
+    }
+    Ok(())
+}
+
+pub fn scan(args: ScanArgs) -> anyhow::Result<()> {
+    let problem = load(&args.problem)?;
+    anyhow::ensure!(
+        args.points >= 2,
+        "--points: allowed ≥ 2 (got {})",
+        args.points
+    );
+    anyhow::ensure!(
+        args.from.is_finite() && args.to.is_finite(),
+        "--from/--to: allowed finite numbers"
+    );
+    anyhow::ensure!(
+        !args.log || (args.from > 0.0 && args.to > 0.0),
+        "--log: --from and --to must be > 0"
+    );
+    let n = args.points;
+    let values: Vec<f64> = (0..n)
+        .map(|i| {
+            let t = i as f64 / (n - 1) as f64;
+            if args.log {
+                (args.from.ln() + t * (args.to.ln() - args.from.ln())).exp()
+            } else {
+                args.from + t * (args.to - args.from)
+            }
+        })
+        .collect();
+    let cancel = interrupt_flag();
+    let show = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let bar = show.then(|| {
+        let bar = ProgressBar::new(n as u64);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "[{elapsed_precise}] {bar:30} {pos}/{len} points (eta {eta})",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let on_point = |k: usize| {
+        if let Some(bar) = &bar {
+            bar.set_position(k as u64)
+        }
+    };
+    let start = Instant::now();
+    let points = inverse::scan(
+        &problem,
+        &args.gene,
+        &values,
+        args.threads,
+        Some(&cancel),
+        Some(&on_point),
+    );
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let points = points.context("scanning")?;
+    inverse::write_scan(&args.out, &problem, &args.gene, &points, args.log)?;
+    if !args.quiet {
+        println!(
+            "{}: {} points of {} in {:.1} s",
+            problem.spec.name,
+            n,
+            args.gene,
+            start.elapsed().as_secs_f64()
+        );
+        for p in &points {
+            println!(
+                "  {:>12.4e}: b_f/b0 = {:.4}, cost {:.4e}, {} samples",
+                p.value, p.eval.means.mean, p.eval.cost, p.eval.samples
+            );
+        }
+        println!("  outputs in {}", args.out.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,83 @@
+//! Checkpoints: after every generation the GA state is written to
+//! `DIR/checkpoint.json` (atomically: temp file, then rename). Since all randomness
+//! derives from (seed, generation[, string, sample]), the state holds no random
+//! generator; a resumed run repeats exactly what the uninterrupted run would do.
+//! Floats are written with round-trip precision, so the restored state is bit-identical.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use super::ga::GaState;
+use super::problem::{InverseError, InverseProblem};
+
+pub const FILE: &str = "checkpoint.json";
+const FORMAT: &str = "agglo-inverse-checkpoint-1";
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Checkpoint {
+    pub format: String,
+    /// The inverse file as parsed and the resolved base scenario: a resume must match both.
+    pub spec: Value,
+    pub base: Value,
+    pub state: GaState,
+}
+
+impl Checkpoint {
+    pub fn new(problem: &InverseProblem, state: &GaState) -> Self {
+        Self {
+            format: FORMAT.into(),
+            spec: serde_json::to_value(&problem.spec).unwrap_or(Value::Null),
+            base: problem.base_value().clone(),
+            state: state.clone(),
+        }
+    }
+
+    pub fn save(&self, dir: &Path) -> Result<(), InverseError> {
+        let text = serde_json::to_string(self)
+            .map_err(|e| InverseError::Checkpoint(format!("serialising the checkpoint: {e}")))?;
+        let tmp = dir.join(format!("{FILE}.tmp"));
+        let io = |source, path: &Path| InverseError::Io {
+            path: path.display().to_string(),
+            source,
+        };
+        std::fs::write(&tmp, text).map_err(|e| io(e, &tmp))?;
+        std::fs::rename(&tmp, dir.join(FILE)).map_err(|e| io(e, &dir.join(FILE)))
+    }
+
+    /// Load `DIR/checkpoint.json` and check it belongs to `problem`.
+    pub fn load(dir: &Path, problem: &InverseProblem) -> Result<GaState, InverseError> {
+        let path = dir.join(FILE);
+        let text = std::fs::read_to_string(&path).map_err(|source| InverseError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let cp: Checkpoint = serde_json::from_str(&text).map_err(|e| {
+            InverseError::Checkpoint(format!("{}: not a valid checkpoint: {e}", path.display()))
+        })?;
+        if cp.format != FORMAT {
+            return Err(InverseError::Checkpoint(format!(
+                "{}: format `{}`, expected `{FORMAT}`",
+                path.display(),
+                cp.format
+            )));
+        }
+        let fresh = Checkpoint::new(problem, &cp.state);
+        if cp.spec != fresh.spec || cp.base != fresh.base {
+            return Err(InverseError::Checkpoint(format!(
+                "{} was written for a different inverse problem or base scenario; \
+                 use another --out directory or drop --resume",
+                path.display()
+            )));
+        }
+        let n = problem.dimension();
+        if cp.state.lower.len() != n || cp.state.parents.iter().any(|m| m.genes.len() != n) {
+            return Err(InverseError::Checkpoint(format!(
+                "{}: gene count does not match the problem",
+                path.display()
+            )));
+        }
+        Ok(cp.state)
+    }
+}

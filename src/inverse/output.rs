@@ -1,0 +1,441 @@
+//! Outputs of an inverse run, all written from the GA state alone (so a resumed run
+//! writes the same files): `generations.csv`, `best.json` (top K in real units, the
+//! layout of P04 Tables 1–3 / P02 Table 1), `best_scenario.json` (the winner, ready
+//! for `agglo run`, seeded with its first ensemble sample), and the charts
+//! `convergence.{png,svg}` (P04 Fig. 4 / P02 Fig. 4) and `best_radii.{png,svg}`
+//! (histogram of final radii over the best string's ensemble, P02 Fig. 5).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use serde::Serialize;
+
+use crate::charts::{FONT, Figure, save_png_and_svg};
+
+use super::ensemble::sample_seed;
+use super::ga::{GaState, GenerationRow};
+use super::problem::{CostSpec, InverseError, InverseProblem};
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> InverseError + '_ {
+    move |source| InverseError::Io {
+        path: path.display().to_string(),
+        source,
+    }
+}
+
+/// `generations.csv`: one row per generation (floats in shortest round-trip form).
+pub fn generations_csv(history: &[GenerationRow]) -> String {
+    let mut s = String::from(
+        "generation,best_cost,mean_top_k,evaluations,total_evaluations,samples,samples_per_string\n",
+    );
+    for r in history {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{}",
+            r.generation,
+            r.best_cost,
+            r.mean_top_k,
+            r.evaluations,
+            r.total_evaluations,
+            r.samples,
+            r.samples as f64 / r.evaluations.max(1) as f64
+        );
+    }
+    s
+}
+
+#[derive(Debug, Serialize)]
+pub struct GeneValue {
+    pub name: String,
+    pub path: String,
+    pub value: f64,
+}
+
+/// One ranked string of `best.json`.
+#[derive(Debug, Serialize)]
+pub struct Ranked {
+    pub rank: usize,
+    pub genes: Vec<GeneValue>,
+    pub cost: f64,
+    /// Ensemble mean b_f / b0.
+    pub growth_ratio: f64,
+    /// n_f = (b̄_f / b0)³.
+    pub n_f: f64,
+    /// Ensemble mean σ/b0, skewness m_3, kurtosis m_4 of the final radii.
+    pub std_dev_ratio: f64,
+    pub skewness: f64,
+    pub kurtosis: f64,
+    pub samples: u32,
+    pub failures: u32,
+    /// Where it was evaluated; sample i ran with seed `seeds[i]` (`agglo run --seed`).
+    pub generation: usize,
+    pub index: usize,
+    pub seeds: Vec<u64>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct BestFile<'a> {
+    pub problem: &'a str,
+    pub cost: &'a CostSpec,
+    pub generations: usize,
+    pub total_evaluations: usize,
+    pub finished: bool,
+    pub top: Vec<Ranked>,
+}
+
+pub fn best_file<'a>(problem: &'a InverseProblem, state: &GaState) -> BestFile<'a> {
+    let names = problem.gene_names();
+    let seed = problem.spec.ga.seed;
+    let top = state
+        .parents
+        .iter()
+        .enumerate()
+        .map(|(r, m)| Ranked {
+            rank: r + 1,
+            genes: names
+                .iter()
+                .zip(&problem.spec.genes)
+                .zip(&m.genes)
+                .map(|((n, g), &v)| GeneValue {
+                    name: n.clone(),
+                    path: g.path.clone(),
+                    value: v,
+                })
+                .collect(),
+            cost: m.eval.cost,
+            growth_ratio: m.eval.means.mean,
+            n_f: m.eval.means.mean.powi(3),
+            std_dev_ratio: m.eval.means.std_dev,
+            skewness: m.eval.means.skewness,
+            kurtosis: m.eval.means.kurtosis,
+            samples: m.eval.samples,
+            failures: m.eval.failures,
+            generation: m.eval.generation,
+            index: m.eval.index,
+            seeds: (0..m.eval.samples)
+                .map(|i| sample_seed(seed, m.eval.generation, m.eval.index, i))
+                .collect(),
+        })
+        .collect();
+    BestFile {
+        problem: &problem.spec.name,
+        cost: &problem.spec.cost,
+        generations: state.generations_done,
+        total_evaluations: state.total_evaluations,
+        finished: state.finished,
+        top,
+    }
+}
+
+/// Write the text outputs (cheap; done after every generation).
+pub fn write_tables(
+    dir: &Path,
+    problem: &InverseProblem,
+    state: &GaState,
+) -> Result<(), InverseError> {
+    let p = dir.join("generations.csv");
+    std::fs::write(&p, generations_csv(&state.history)).map_err(io(&p))?;
+    let best = best_file(problem, state);
+    let p = dir.join("best.json");
+    let text =
+        serde_json::to_string_pretty(&best).map_err(|e| InverseError::Other(e.to_string()))?;
+    std::fs::write(&p, text + "\n").map_err(io(&p))?;
+    if let Some(m) = state.best() {
+        let seed = sample_seed(problem.spec.ga.seed, m.eval.generation, m.eval.index, 0);
+        let mut scenario = problem
+            .scenario_for(&m.genes, seed)
+            .map_err(|e| InverseError::Other(format!("best scenario: {e}")))?;
+        scenario.name = format!("{}_best", problem.spec.name);
+        scenario.description = format!(
+            "Best string of inverse problem `{}` after {} generations: ensemble cost {} over {} samples \
+             (seeds in best.json; this file uses the first).",
+            problem.spec.name, state.generations_done, m.eval.cost, m.eval.samples
+        );
+        let p = dir.join("best_scenario.json");
+        std::fs::write(&p, scenario.to_json() + "\n").map_err(io(&p))?;
+    }
+    Ok(())
+}
+
+/// Write the charts (at the end of a run).
+pub fn write_charts(
+    dir: &Path,
+    problem: &InverseProblem,
+    state: &GaState,
+) -> Result<(), InverseError> {
+    let chart = |e: anyhow::Error| InverseError::Other(format!("chart: {e:#}"));
+    save_png_and_svg(
+        dir,
+        "convergence",
+        (900, 600),
+        &Convergence {
+            title: format!("{}: cost per generation", problem.spec.name),
+            history: &state.history,
+        },
+    )
+    .map_err(chart)?;
+    if let Some(m) = state.best()
+        && !m.eval.radii.is_empty()
+    {
+        save_png_and_svg(
+            dir,
+            "best_radii",
+            (900, 600),
+            &Histogram {
+                title: format!(
+                    "Final radii of the best string ({} samples)",
+                    m.eval.samples
+                ),
+                x_label: "b / b0".into(),
+                values: &m.eval.radii,
+                bins: 30,
+            },
+        )
+        .map_err(chart)?;
+    }
+    Ok(())
+}
+
+fn err<E: std::fmt::Display>(e: E) -> anyhow::Error {
+    anyhow::anyhow!("{e}")
+}
+
+struct Convergence<'a> {
+    title: String,
+    history: &'a [GenerationRow],
+}
+
+impl Figure for Convergence<'_> {
+    fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let h = self.history;
+        let n = h.len().max(1) as f64;
+        let values: Vec<f64> = h.iter().flat_map(|r| [r.best_cost, r.mean_top_k]).collect();
+        let hi = values
+            .iter()
+            .cloned()
+            .filter(|v| v.is_finite())
+            .fold(f64::MIN, f64::max);
+        let lo = values
+            .iter()
+            .cloned()
+            .filter(|v| v.is_finite())
+            .fold(f64::MAX, f64::min);
+        let log = lo > 0.0 && hi / lo > 20.0;
+        let best: Vec<(f64, f64)> = h
+            .iter()
+            .map(|r| (r.generation as f64, r.best_cost))
+            .collect();
+        let mean: Vec<(f64, f64)> = h
+            .iter()
+            .map(|r| (r.generation as f64, r.mean_top_k))
+            .collect();
+        let (lo, hi) = if hi >= lo { (lo, hi) } else { (0.0, 1.0) };
+        let pad = if hi > lo {
+            0.05 * (hi - lo)
+        } else {
+            0.1 * hi.abs().max(1e-12)
+        };
+        let mut builder = ChartBuilder::on(area);
+        builder
+            .caption(&self.title, (FONT, 22))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(80);
+        macro_rules! finish {
+            ($chart:expr) => {{
+                let mut chart = $chart;
+                chart
+                    .configure_mesh()
+                    .x_desc("generation")
+                    .y_desc("cost")
+                    .label_style((FONT, 14))
+                    .draw()
+                    .map_err(err)?;
+                chart
+                    .draw_series(LineSeries::new(best.clone(), BLUE.stroke_width(2)))
+                    .map_err(err)?
+                    .label("best")
+                    .legend(|(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2))
+                    });
+                chart
+                    .draw_series(best.iter().map(|&p| Circle::new(p, 3, BLUE.filled())))
+                    .map_err(err)?;
+                chart
+                    .draw_series(LineSeries::new(mean.clone(), RED.stroke_width(2)))
+                    .map_err(err)?
+                    .label("mean of top K")
+                    .legend(|(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2))
+                    });
+                chart
+                    .configure_series_labels()
+                    .label_font((FONT, 14))
+                    .background_style(WHITE.mix(0.8))
+                    .border_style(BLACK)
+                    .draw()
+                    .map_err(err)?;
+            }};
+        }
+        if log {
+            finish!(
+                builder
+                    .build_cartesian_2d(-0.5..n - 0.5, (lo * 0.8..hi * 1.25).log_scale())
+                    .map_err(err)?
+            );
+        } else {
+            finish!(
+                builder
+                    .build_cartesian_2d(-0.5..n - 0.5, (lo - pad)..(hi + pad))
+                    .map_err(err)?
+            );
+        }
+        Ok(())
+    }
+}
+
+/// A histogram of `values` with `bins` equal bins.
+pub struct Histogram<'a> {
+    pub title: String,
+    pub x_label: String,
+    pub values: &'a [f64],
+    pub bins: usize,
+}
+
+impl Figure for Histogram<'_> {
+    fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let lo = self.values.iter().cloned().fold(f64::MAX, f64::min);
+        let mut hi = self.values.iter().cloned().fold(f64::MIN, f64::max);
+        if hi <= lo {
+            hi = lo + 1.0;
+        }
+        let width = (hi - lo) / self.bins as f64;
+        let mut counts = vec![0usize; self.bins];
+        for &v in self.values {
+            let i = (((v - lo) / width) as usize).min(self.bins - 1);
+            counts[i] += 1;
+        }
+        let top = *counts.iter().max().unwrap_or(&1) as f64;
+        let mut chart = ChartBuilder::on(area)
+            .caption(&self.title, (FONT, 22))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d(lo..hi, 0.0..top * 1.1)
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc(self.x_label.as_str())
+            .y_desc("bodies")
+            .label_style((FONT, 14))
+            .draw()
+            .map_err(err)?;
+        chart
+            .draw_series(counts.iter().enumerate().map(|(i, &c)| {
+                let x0 = lo + i as f64 * width;
+                Rectangle::new([(x0, 0.0), (x0 + width, c as f64)], BLUE.mix(0.6).filled())
+            }))
+            .map_err(err)?;
+        Ok(())
+    }
+}
+
+/// A line chart of y against x, optionally with a horizontal reference line.
+pub struct LineChart<'a> {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub points: &'a [(f64, f64)],
+    pub log_x: bool,
+    pub reference: Option<(f64, String)>,
+}
+
+impl Figure for LineChart<'_> {
+    fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        let xs = self.points.iter().map(|p| p.0);
+        let x0 = xs.clone().fold(f64::MAX, f64::min);
+        let x1 = xs.fold(f64::MIN, f64::max).max(x0 * 1.0001 + 1e-300);
+        let mut ys: Vec<f64> = self
+            .points
+            .iter()
+            .map(|p| p.1)
+            .filter(|y| y.is_finite())
+            .collect();
+        if let Some((r, _)) = &self.reference {
+            ys.push(*r);
+        }
+        let y0 = ys.iter().cloned().fold(f64::MAX, f64::min);
+        let y1 = ys.iter().cloned().fold(f64::MIN, f64::max);
+        let pad = ((y1 - y0) * 0.08).max(1e-9);
+        let mut builder = ChartBuilder::on(area);
+        builder
+            .caption(&self.title, (FONT, 22))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(70);
+        macro_rules! finish {
+            ($chart:expr) => {{
+                let mut chart = $chart;
+                chart
+                    .configure_mesh()
+                    .x_desc(self.x_label.as_str())
+                    .y_desc(self.y_label.as_str())
+                    .label_style((FONT, 14))
+                    .draw()
+                    .map_err(err)?;
+                chart
+                    .draw_series(LineSeries::new(self.points.to_vec(), BLUE.stroke_width(2)))
+                    .map_err(err)?;
+                chart
+                    .draw_series(
+                        self.points
+                            .iter()
+                            .map(|&p| Circle::new(p, 4, BLUE.filled())),
+                    )
+                    .map_err(err)?;
+                if let Some((r, label)) = &self.reference {
+                    chart
+                        .draw_series(LineSeries::new(
+                            vec![(x0, *r), (x1, *r)],
+                            RED.stroke_width(1),
+                        ))
+                        .map_err(err)?
+                        .label(label.as_str())
+                        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+                    chart
+                        .configure_series_labels()
+                        .label_font((FONT, 14))
+                        .background_style(WHITE.mix(0.8))
+                        .border_style(BLACK)
+                        .draw()
+                        .map_err(err)?;
+                }
+            }};
+        }
+        if self.log_x && x0 > 0.0 {
+            finish!(
+                builder
+                    .build_cartesian_2d((x0..x1).log_scale(), (y0 - pad)..(y1 + pad))
+                    .map_err(err)?
+            );
+        } else {
+            finish!(
+                builder
+                    .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
+                    .map_err(err)?
+            );
+        }
+        Ok(())
+    }
+}

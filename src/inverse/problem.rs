@@ -1,0 +1,532 @@
+//! Inverse-problem files: the base scenario, the genes and their ranges, the cost,
+//! the ensemble rule and the genetic-algorithm settings (MODEL.md §12), with
+//! validation that names the field path of every problem, like scenario files.
+//!
+//! ```json
+//! { "name": "…", "base": "paper2004_best.json",
+//!   "genes": [ { "name": "v0", "path": "cloud.v_rel.0", "min": 20, "max": 200,
+//!                "tied": [ { "path": "cloud.v_rel.1", "scale": 0.1 } ] } ],
+//!   "end_time": "scenario",
+//!   "cost": "pi04",
+//!   "ensemble": { "tol": 0.0005, "min_samples": 2, "max_samples": 40, "track": ["cost"] },
+//!   "ga": { "strings": 20, "parents": 6, "generations": 25, "rescale_every": 4,
+//!           "shrink": 0.5, "tol": 0, "seed": 2004 },
+//!   "on_failure": "error" }
+//! ```
+//! `base` is a path relative to the inverse file's directory, or an inline scenario.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::error::{ScenarioError, SimError, ValidationIssue};
+use crate::scenario::{Scenario, Stepping};
+
+use super::genes::{get_path, set_path};
+
+/// An inverse-problem file as written.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InverseSpec {
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    /// Base scenario: a path relative to this file's directory, or an inline scenario object.
+    pub base: BaseScenario,
+    /// The parameters searched, each a numeric scenario field with a range.
+    pub genes: Vec<GeneSpec>,
+    /// How the end time T follows from the genes.
+    #[serde(default)]
+    pub end_time: EndTimeRule,
+    pub cost: CostSpec,
+    pub ensemble: EnsembleSpec,
+    pub ga: GaSpec,
+    /// What a failed simulation sample does.
+    #[serde(default)]
+    pub on_failure: FailurePolicy,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum BaseScenario {
+    /// Path to a scenario file, relative to the inverse file's directory.
+    Path(String),
+    /// The scenario itself.
+    Inline(Box<Value>),
+}
+
+/// One gene: a scenario field (dotted path) searched in [min, max], with optional
+/// fields tied to it (set to `scale` × gene).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GeneSpec {
+    /// Short label used in outputs (defaults to the path).
+    #[serde(default)]
+    pub name: String,
+    /// Dotted scenario path, e.g. `material.H0` or `cloud.v_rel.0`.
+    pub path: String,
+    pub min: f64,
+    pub max: f64,
+    /// Other fields that follow this gene: field = scale × gene (P04: v_rel = (v0, 0.1 v0, 0.1 v0)).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tied: Vec<Tie>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tie {
+    pub path: String,
+    #[serde(default = "one")]
+    pub scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// How T is set for each parameter set.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum EndTimeRule {
+    /// Use the base scenario's `time` as is.
+    #[default]
+    Scenario,
+    /// P02 (13): T = (S_gap / v_crit) · ln(0.01)/ln(0.9), S_gap = (V/N)^(1/3) − 2 b0,
+    /// v_crit = √(6 af H0 β / ρ) (MODEL.md §13), with `steps` fixed steps of T / steps.
+    P02 { steps: u64 },
+}
+
+/// The cost of one parameter set, computed from ensemble-mean observables.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum CostSpec {
+    /// Π04 = 1 − b̄_f / b* (P04 (7.1)); lower = more agglomeration.
+    Pi04,
+    /// Π02 = |b̄_f / (r_t b0) − 1| (P02 (26)).
+    Pi02 { target_ratio: f64 },
+    /// |m̄ − target| / |target| (|m̄| if target = 0) for one radius moment.
+    Moment { moment: Moment, target: f64 },
+}
+
+/// Radius-distribution moments (MODEL.md §11); lengths in units of b0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Moment {
+    /// b_f / b0.
+    Mean,
+    /// σ / b0.
+    StdDev,
+    /// m_3.
+    Skewness,
+    /// m_4.
+    Kurtosis,
+}
+
+/// Quantities whose running ensemble mean must stabilise (P04 (8.1), P02 (25), (27)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Tracked {
+    /// The cost of the running means.
+    Cost,
+    Mean,
+    StdDev,
+    Skewness,
+    Kurtosis,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnsembleSpec {
+    /// Stop when |Q̄_{E+1} − Q̄_E| ≤ tol |Q̄_{E+1}| for every tracked Q.
+    pub tol: f64,
+    #[serde(default = "two")]
+    pub min_samples: u32,
+    pub max_samples: u32,
+    #[serde(default = "default_track")]
+    pub track: Vec<Tracked>,
+}
+
+fn two() -> u32 {
+    2
+}
+fn default_track() -> Vec<Tracked> {
+    vec![Tracked::Cost]
+}
+
+/// Genetic-algorithm settings (MODEL.md §12).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GaSpec {
+    /// Population size S.
+    pub strings: usize,
+    /// Parents kept K (even); M = S − 2K new random strings per generation.
+    pub parents: usize,
+    /// Maximum number of generations G.
+    pub generations: usize,
+    /// Shrink the bounds around the best every this many generations (0 = never).
+    #[serde(default)]
+    pub rescale_every: usize,
+    /// New half-width = old half-width × shrink, 0 < shrink ≤ 1.
+    #[serde(default = "half")]
+    pub shrink: f64,
+    /// Stop when the watched cost ≤ tol.
+    #[serde(default)]
+    pub tol: f64,
+    /// Which cost `tol` watches.
+    #[serde(default)]
+    pub stop_on: StopOn,
+    /// Run seed: every random draw derives from it.
+    pub seed: u64,
+}
+
+fn half() -> f64 {
+    0.5
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopOn {
+    #[default]
+    Best,
+    MeanTopK,
+}
+
+/// What a failed sample (placement impossible, step limit, non-finite state) does.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum FailurePolicy {
+    /// Stop the whole run with an error naming the genes and the seed (default).
+    #[default]
+    Error,
+    /// The string's cost becomes this value and its ensemble stops.
+    Penalty(f64),
+}
+
+/// Everything that can go wrong in the inverse problem.
+#[derive(Debug, thiserror::Error)]
+pub enum InverseError {
+    #[error("cannot read `{path}`: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("inverse file field `{path}`: {message}")]
+    Parse { path: String, message: String },
+    #[error("invalid inverse problem:\n  {}", .0.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("\n  "))]
+    Invalid(Vec<ValidationIssue>),
+    #[error("base scenario: {0}")]
+    Base(#[source] ScenarioError),
+    #[error(
+        "generation {generation}, string {string}, sample {sample} (seed {seed}) failed with genes {genes}: {source}\n  \
+         (set \"on_failure\": {{\"penalty\": <cost>}} in the inverse file to score such strings instead)"
+    )]
+    Sample {
+        generation: usize,
+        string: usize,
+        sample: u32,
+        seed: u64,
+        genes: String,
+        #[source]
+        source: SimError,
+    },
+    #[error("{0}")]
+    Checkpoint(String),
+    #[error("interrupted; the last completed generation is checkpointed: continue with --resume")]
+    Interrupted,
+    #[error("{0}")]
+    Other(String),
+}
+
+/// A loaded, validated inverse problem with its base scenario resolved.
+#[derive(Debug, Clone)]
+pub struct InverseProblem {
+    pub spec: InverseSpec,
+    /// The base scenario (defaults filled in).
+    pub base: Scenario,
+    base_value: Value,
+}
+
+impl InverseProblem {
+    /// Read an inverse file; a relative `base` path is resolved against the file's directory.
+    pub fn load(path: &Path) -> Result<Self, InverseError> {
+        let text = std::fs::read_to_string(path).map_err(|source| InverseError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Self::from_json(&text, &dir)
+    }
+
+    /// Parse inverse-file text; `dir` resolves a relative `base` path.
+    pub fn from_json(text: &str, dir: &Path) -> Result<Self, InverseError> {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let spec: InverseSpec =
+            serde_path_to_error::deserialize(de).map_err(|e| InverseError::Parse {
+                path: e.path().to_string(),
+                message: e.inner().to_string(),
+            })?;
+        Self::new(spec, dir)
+    }
+
+    /// Validate `spec` and resolve its base scenario.
+    pub fn new(spec: InverseSpec, dir: &Path) -> Result<Self, InverseError> {
+        let base = match &spec.base {
+            BaseScenario::Path(p) => {
+                let full: PathBuf = dir.join(p);
+                Scenario::load(&full).map_err(InverseError::Base)?
+            }
+            BaseScenario::Inline(v) => {
+                Scenario::from_value((**v).clone()).map_err(InverseError::Base)?
+            }
+        };
+        let base_value = serde_json::to_value(&base)
+            .map_err(|e| InverseError::Other(format!("serialising the base scenario: {e}")))?;
+        let problem = Self {
+            spec,
+            base,
+            base_value,
+        };
+        problem.validate()?;
+        Ok(problem)
+    }
+
+    /// Number of genes.
+    pub fn dimension(&self) -> usize {
+        self.spec.genes.len()
+    }
+
+    /// Gene labels (name, or path when unnamed).
+    pub fn gene_names(&self) -> Vec<String> {
+        self.spec
+            .genes
+            .iter()
+            .map(|g| {
+                if g.name.is_empty() {
+                    g.path.clone()
+                } else {
+                    g.name.clone()
+                }
+            })
+            .collect()
+    }
+
+    /// Original search bounds (lower, upper).
+    pub fn bounds(&self) -> (Vec<f64>, Vec<f64>) {
+        (
+            self.spec.genes.iter().map(|g| g.min).collect(),
+            self.spec.genes.iter().map(|g| g.max).collect(),
+        )
+    }
+
+    /// The base scenario as a JSON value with every default filled in.
+    pub fn base_value(&self) -> &Value {
+        &self.base_value
+    }
+
+    /// The scenario for gene values `genes` and scene seed `seed` (genes applied,
+    /// tied fields set, end-time rule applied, validated).
+    pub fn scenario_for(&self, genes: &[f64], seed: u64) -> Result<Scenario, ScenarioError> {
+        let mut value = self.base_value.clone();
+        for (g, &x) in self.spec.genes.iter().zip(genes) {
+            set_gene(&mut value, &g.path, x)?;
+            for tie in &g.tied {
+                set_gene(&mut value, &tie.path, tie.scale * x)?;
+            }
+        }
+        self.finish(value, seed)
+    }
+
+    /// The base scenario with one field overridden (for one-gene scans).
+    pub fn scenario_with(&self, path: &str, x: f64, seed: u64) -> Result<Scenario, ScenarioError> {
+        let mut value = self.base_value.clone();
+        set_gene(&mut value, path, x)?;
+        self.finish(value, seed)
+    }
+
+    fn finish(&self, mut value: Value, seed: u64) -> Result<Scenario, ScenarioError> {
+        if let Value::Object(map) = &mut value {
+            map.insert("seed".into(), Value::from(seed));
+        }
+        let mut scenario = Scenario::from_value(value)?;
+        if let EndTimeRule::P02 { steps } = self.spec.end_time {
+            let end = p02_end_time(&scenario);
+            scenario.time.end = end;
+            scenario.time.stepping = Stepping::Fixed {
+                dt: end / steps as f64,
+            };
+            scenario.validate()?;
+        }
+        Ok(scenario)
+    }
+
+    fn validate(&self) -> Result<(), InverseError> {
+        let mut issues = Vec::new();
+        let mut push =
+            |path: String, message: String| issues.push(ValidationIssue { path, message });
+        let s = &self.spec;
+        if s.genes.is_empty() {
+            push("genes".into(), "at least one gene is needed".into());
+        }
+        for (i, g) in s.genes.iter().enumerate() {
+            if !(g.min.is_finite() && g.max.is_finite() && g.min <= g.max) {
+                push(
+                    format!("genes.{i}.max"),
+                    format!(
+                        "need finite min ≤ max (got min = {}, max = {})",
+                        g.min, g.max
+                    ),
+                );
+            }
+            match get_path(&self.base_value, &g.path) {
+                Some(Value::Number(_)) | Some(Value::Null) => {}
+                _ => push(
+                    format!("genes.{i}.path"),
+                    format!("`{}` is not a numeric field of the base scenario", g.path),
+                ),
+            }
+            for (j, t) in g.tied.iter().enumerate() {
+                if !matches!(
+                    get_path(&self.base_value, &t.path),
+                    Some(Value::Number(_)) | Some(Value::Null)
+                ) {
+                    push(
+                        format!("genes.{i}.tied.{j}.path"),
+                        format!("`{}` is not a numeric field of the base scenario", t.path),
+                    );
+                }
+                if !t.scale.is_finite() {
+                    push(
+                        format!("genes.{i}.tied.{j}.scale"),
+                        "a finite number".into(),
+                    );
+                }
+            }
+        }
+        if let EndTimeRule::P02 { steps } = s.end_time
+            && steps == 0
+        {
+            push("end_time.p02.steps".into(), "allowed ≥ 1 (got 0)".into());
+        }
+        match s.cost {
+            CostSpec::Pi04 => {}
+            CostSpec::Pi02 { target_ratio } => {
+                if !(target_ratio.is_finite() && target_ratio > 0.0) {
+                    push(
+                        "cost.pi02.target_ratio".into(),
+                        format!("allowed a finite number > 0 (got {target_ratio})"),
+                    );
+                }
+            }
+            CostSpec::Moment { target, .. } => {
+                if !target.is_finite() {
+                    push(
+                        "cost.moment.target".into(),
+                        format!("allowed a finite number (got {target})"),
+                    );
+                }
+            }
+        }
+        let e = &s.ensemble;
+        if !(e.tol.is_finite() && e.tol >= 0.0) {
+            push(
+                "ensemble.tol".into(),
+                format!("allowed a finite number ≥ 0 (got {})", e.tol),
+            );
+        }
+        if e.min_samples == 0 {
+            push("ensemble.min_samples".into(), "allowed ≥ 1 (got 0)".into());
+        }
+        if e.max_samples < e.min_samples.max(1) {
+            push(
+                "ensemble.max_samples".into(),
+                format!(
+                    "allowed ≥ min_samples = {} (got {})",
+                    e.min_samples, e.max_samples
+                ),
+            );
+        }
+        if e.track.is_empty() {
+            push("ensemble.track".into(), "list at least one quantity".into());
+        }
+        let ga = &s.ga;
+        if ga.strings < 2 {
+            push(
+                "ga.strings".into(),
+                format!("allowed S ≥ 2 (got {})", ga.strings),
+            );
+        }
+        if ga.parents < 2 || !ga.parents.is_multiple_of(2) || 2 * ga.parents > ga.strings {
+            push(
+                "ga.parents".into(),
+                format!(
+                    "allowed an even K with 2 ≤ K and 2K ≤ S = {} (got {})",
+                    ga.strings, ga.parents
+                ),
+            );
+        }
+        if ga.generations == 0 {
+            push("ga.generations".into(), "allowed ≥ 1 (got 0)".into());
+        }
+        if !(ga.shrink > 0.0 && ga.shrink <= 1.0) {
+            push(
+                "ga.shrink".into(),
+                format!("allowed 0 < shrink ≤ 1 (got {})", ga.shrink),
+            );
+        }
+        if !ga.tol.is_finite() {
+            push(
+                "ga.tol".into(),
+                format!("allowed a finite number (got {})", ga.tol),
+            );
+        }
+        if let FailurePolicy::Penalty(p) = s.on_failure
+            && !p.is_finite()
+        {
+            push(
+                "on_failure.penalty".into(),
+                format!("allowed a finite number (got {p})"),
+            );
+        }
+        if !issues.is_empty() {
+            return Err(InverseError::Invalid(issues));
+        }
+        // Every corner of the box must give a valid scenario (e.g. s < 0.9, a0 ≤ af),
+        // so no gene combination can fail validation mid-run.
+        let (lo, hi) = self.bounds();
+        for (label, genes) in [("lower", &lo), ("upper", &hi)] {
+            if let Err(e) = self.scenario_for(genes, self.base.seed) {
+                issues.push(ValidationIssue {
+                    path: "genes".into(),
+                    message: format!(
+                        "all genes at their {label} bounds give an invalid scenario: {e}"
+                    ),
+                });
+            }
+        }
+        if issues.is_empty() {
+            Ok(())
+        } else {
+            Err(InverseError::Invalid(issues))
+        }
+    }
+}
+
+fn set_gene(value: &mut Value, path: &str, x: f64) -> Result<(), ScenarioError> {
+    set_path(value, path, x).map_err(|message| {
+        ScenarioError::Invalid(vec![ValidationIssue {
+            path: path.into(),
+            message,
+        }])
+    })
+}
+
+/// P02 (13) end time for a scenario (MODEL.md §13): T = (S_gap / v_crit) · ln(0.01)/ln(0.9).
+pub fn p02_end_time(s: &Scenario) -> f64 {
+    let side = 2.0 * s.domain.half_width;
+    let spacing = (side.powi(3) / s.cloud.count as f64).cbrt();
+    let gap = spacing - 2.0 * s.primary_radius();
+    let v_crit = (6.0 * s.impact.af * s.material.H0 * s.impact.beta / s.material.rho).sqrt();
+    gap / v_crit * (0.01f64.ln() / 0.9f64.ln())
+}
