@@ -27,7 +27,7 @@ pub struct Cli {
 pub enum Command {
     /// Run a scenario to its end time.
     Run(RunArgs),
-    /// Check a scenario file and print what it describes.
+    /// Check a scenario (or inverse-problem) file and print what it describes.
     Validate {
         /// Scenario file (JSON).
         scenario: PathBuf,
@@ -143,6 +143,18 @@ fn load(path: &Path) -> anyhow::Result<Scenario> {
 }
 
 fn validate(path: &Path) -> anyhow::Result<()> {
+    if is_inverse_file(path) {
+        let problem = agglo::inverse::InverseProblem::load(path)
+            .with_context(|| format!("loading inverse problem {}", path.display()))?;
+        println!(
+            "{}: valid inverse problem — {} genes ({}), base scenario {}",
+            path.display(),
+            problem.dimension(),
+            problem.gene_names().join(", "),
+            problem.base.name
+        );
+        return Ok(());
+    }
     let s = load(path)?;
     println!(
         "{}: valid — N = {}, b0 = {:.4e} m, volume fraction {:.4}, D = {:e} m, T = {:e} s, seed {}",
@@ -155,6 +167,14 @@ fn validate(path: &Path) -> anyhow::Result<()> {
         s.seed
     );
     Ok(())
+}
+
+/// An inverse-problem file rather than a scenario: its top level has `genes`.
+fn is_inverse_file(path: &Path) -> bool {
+    std::fs::read_to_string(path)
+        .ok()
+        .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
+        .is_some_and(|v| v.get("genes").is_some())
 }
 
 fn run(args: RunArgs) -> anyhow::Result<()> {

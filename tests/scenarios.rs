@@ -184,3 +184,37 @@ fn missing_file_is_a_clear_error() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/scenario.json"));
 }
+
+#[test]
+fn every_shipped_inverse_file_validates_through_the_cli() {
+    let mut checked = 0;
+    for entry in std::fs::read_dir(scenarios_dir()).unwrap() {
+        let path = entry.unwrap().path();
+        if !path
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .contains("inverse")
+        {
+            continue;
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_agglo"))
+            .arg("validate")
+            .arg(&path)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            path.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(stdout.contains("valid inverse problem"), "{stdout}");
+        checked += 1;
+    }
+    assert!(
+        checked >= 3,
+        "expected the three shipped inverse files, found {checked}"
+    );
+}
