@@ -240,6 +240,9 @@ pub struct SimClock {
     pub clamped_at_min: bool,
     /// True when the last step merged or fragmented bodies (which may then overlap legitimately).
     pub bodies_reshaped: bool,
+    /// True when the last step pushed an overlapping bouncing pair apart (MODEL.md §5),
+    /// which may push one of them into a third body.
+    pub bodies_pushed: bool,
 }
 
 /// Event counters of the run (cheap, always on).
@@ -310,8 +313,10 @@ pub struct Contact {
     /// Stable ids of a and b (a's id < b's id).
     pub id_a: u64,
     pub id_b: u64,
-    /// Unit normal from a to b (minimum image).
+    /// Unit normal from a to b (towards the periodic image of b that is met).
     pub normal: DVec3,
+    /// r_b − r_a for that image [m] (the minimum image unless the bodies are large).
+    pub separation: DVec3,
     /// Gap at detection [m] (negative = overlap).
     pub gap: f64,
 }
@@ -331,6 +336,8 @@ pub struct ImpactRecord {
     pub id_b: u64,
     /// Unit normal from a to b.
     pub normal: DVec3,
+    /// r_b − r_a of the image that was met [m].
+    pub separation: DVec3,
     /// True when the pair bonded (to be merged).
     pub bonded: bool,
     /// Kinetic energy each body lost in the pair's centre-of-mass frame [J].

@@ -15,7 +15,10 @@
 
 use glam::DVec3;
 
-/// One pair within the margin: indices into the input arrays, in either order, `d` = minimum image of r_j − r_i, `gap` = |d| − b_i − b_j.
+/// One pair within the margin: indices into the input arrays, in either order,
+/// `d` = r_j − r_i for one periodic image of j (the minimum image, unless the bodies are
+/// large enough that several images are in reach: then one entry per image),
+/// `gap` = |d| − b_i − b_j.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NearPair {
     pub i: u32,
@@ -173,17 +176,35 @@ impl NeighbourGrid {
                     }
                     let d = min_image(positions[ju] - ri);
                     let reach = bi + radii[ju] + margin;
-                    let dist2 = d.length_squared();
-                    if dist2 > reach * reach {
+                    if reach <= half {
+                        // Only the nearest image can be within reach.
+                        let dist2 = d.length_squared();
+                        if dist2 <= reach * reach {
+                            let gap = dist2.sqrt() - bi - radii[ju];
+                            out.push(NearPair {
+                                i: i as u32,
+                                j,
+                                d,
+                                gap,
+                            });
+                        }
                         return;
                     }
-                    let gap = dist2.sqrt() - bi - radii[ju];
-                    out.push(NearPair {
-                        i: i as u32,
-                        j,
-                        d,
-                        gap,
-                    });
+                    // Bodies larger than a quarter of the box: several periodic images of
+                    // the partner may be within reach, and any of them can be met.
+                    for image in IMAGES {
+                        let di = d + side * image;
+                        let dist2 = di.length_squared();
+                        if dist2 <= reach * reach {
+                            let gap = dist2.sqrt() - bi - radii[ju];
+                            out.push(NearPair {
+                                i: i as u32,
+                                j,
+                                d: di,
+                                gap,
+                            });
+                        }
+                    }
                 };
                 let n = level.n;
                 let reach = bi + level.max_radius + margin;
@@ -243,6 +264,23 @@ impl NeighbourGrid {
     }
 }
 
+/// The 27 lattice translations (in box sides) of a partner's nearest periodic images.
+/// Two bodies together hold at most the whole volume fraction (< 0.39), so b_i + b_j
+/// stays below one box side and images further away can never be in reach.
+const IMAGES: [DVec3; 27] = {
+    let mut images = [DVec3::ZERO; 27];
+    let mut k = 0;
+    while k < 27 {
+        images[k] = DVec3::new(
+            (k % 3) as f64 - 1.0,
+            ((k / 3) % 3) as f64 - 1.0,
+            (k / 9) as f64 - 1.0,
+        );
+        k += 1;
+    }
+    images
+};
+
 /// The 13 neighbour offsets "after" the own cell in (z, y, x) order.
 const HALF_SHELL: [(isize, isize, isize); 13] = [
     (1, 0, 0),
@@ -277,19 +315,30 @@ mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng, rngs::StdRng};
 
-    fn brute(pos: &[DVec3], radii: &[f64], hw: f64, margin: f64) -> Vec<(u32, u32)> {
+    /// Every (i < j, image) within reach, with the separation from i to that image of j
+    /// rounded to 1e-9 so that the grid's and this list's entries compare exactly.
+    fn brute(pos: &[DVec3], radii: &[f64], hw: f64, margin: f64) -> Vec<(u32, u32, [i64; 3])> {
         let side = 2.0 * hw;
         let mut v = Vec::new();
         for i in 0..pos.len() {
             for j in i + 1..pos.len() {
                 let d = pos[j] - pos[i];
                 let d = d - side * (d / side).round();
-                if d.length() - radii[i] - radii[j] <= margin {
-                    v.push((i as u32, j as u32));
+                let reach = radii[i] + radii[j] + margin;
+                for image in IMAGES {
+                    let di = d + side * image;
+                    if di.length() <= reach {
+                        v.push((i as u32, j as u32, key(di)));
+                    }
                 }
             }
         }
+        v.sort();
         v
+    }
+
+    fn key(d: DVec3) -> [i64; 3] {
+        [d.x, d.y, d.z].map(|x| (x * 1e9).round() as i64)
     }
 
     #[test]
@@ -311,12 +360,24 @@ mod tests {
         let mut grid = NeighbourGrid::default();
         let mut out = Vec::new();
         grid.pairs_within(&pos, &radii, hw, 0.02, &mut out);
-        let mut got: Vec<(u32, u32)> = out.iter().map(|p| (p.i.min(p.j), p.i.max(p.j))).collect();
+        // Orient every entry from the lower index to the higher one.
+        let mut got: Vec<(u32, u32, [i64; 3])> = out
+            .iter()
+            .map(|p| {
+                if p.i < p.j {
+                    (p.i, p.j, key(p.d))
+                } else {
+                    (p.j, p.i, key(-p.d))
+                }
+            })
+            .collect();
         got.sort();
         let before = got.len();
         got.dedup();
-        assert_eq!(before, got.len(), "a pair was reported twice");
+        assert_eq!(before, got.len(), "a pair image was reported twice");
         assert!(out.iter().all(|p| p.i != p.j), "a body met itself");
+        // The giant (radius 1.2 D) meets some neighbours through two images at once.
+        assert!(got.windows(2).any(|w| w[0].0 == w[1].0 && w[0].1 == w[1].1));
         assert_eq!(got, brute(&pos, &radii, hw, 0.02));
     }
 }

@@ -19,7 +19,7 @@ use glam::DVec3;
 use crate::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
 use crate::resources::{
     BoxGeometry, ContactList, Counters, EnergyLedger, ImpactRecord, ImpactRecords, ImpactSettings,
-    MaterialConstants, StateChanged, hardness,
+    MaterialConstants, SimClock, StateChanged, hardness,
 };
 use crate::scenario::{DurationLaw, SolverKind};
 
@@ -453,6 +453,7 @@ pub fn resolve_impacts(
     mut counters: ResMut<Counters>,
     mut ledger: ResMut<EnergyLedger>,
     mut changed: ResMut<StateChanged>,
+    mut clock: ResMut<SimClock>,
 ) {
     records.records.clear();
     if contacts.contacts.is_empty() {
@@ -487,9 +488,10 @@ pub fn resolve_impacts(
 
         if !out.bonded {
             // Push an overlapping pair apart along n to touching; the centre of mass stays.
-            let d = geometry.min_image(pb.0 - pa.0);
-            let overlap = ra.0 + rb.0 - d.length();
+            // The image met may not be the nearest one when bodies are large.
+            let overlap = ra.0 + rb.0 - contact.separation.length();
             if overlap > 0.0 {
+                clock.bodies_pushed = true;
                 let total = ma.0 + mb.0;
                 pa.0 = geometry.wrap(pa.0 - contact.normal * (overlap * mb.0 / total));
                 pb.0 = geometry.wrap(pb.0 + contact.normal * (overlap * ma.0 / total));
@@ -517,6 +519,7 @@ pub fn resolve_impacts(
             id_a: contact.id_a,
             id_b: contact.id_b,
             normal: contact.normal,
+            separation: contact.separation,
             bonded: out.bonded,
             lost_a: out.lost_i,
             lost_b: out.lost_j,

@@ -44,10 +44,10 @@ pub fn merge_bonded(
             continue;
         };
         let (mut pa, mut va, mut ma, mut ra, mut ta, mut ha, mut na) = a;
-        let (pb, vb, mb, _, tb, _, nb) = b;
+        let (_, vb, mb, _, tb, _, nb) = b;
         let m = ma.0 + mb.0;
-        let offset = geometry.min_image(pb.0 - pa.0);
-        pa.0 = geometry.wrap(pa.0 + offset * (mb.0 / m));
+        // Centre of mass with the image of b that was met (not always the nearest one).
+        pa.0 = geometry.wrap(pa.0 + record.separation * (mb.0 / m));
         va.0 = (ma.0 * va.0 + mb.0 * vb.0) / m;
         ta.0 = (ma.0 * ta.0 + mb.0 * tb.0) / m;
         na.0 += nb.0;

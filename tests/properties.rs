@@ -9,8 +9,14 @@ use proptest::prelude::*;
 use serde_json::json;
 
 proptest! {
-    // Each case is a full small run: 64 cases take about a second.
-    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    // Each case is a full small run: 64 cases take about a second. The seed is fixed so CI
+    // is reproducible; set PROPTEST_CASES and change the seed locally to explore further
+    // (a failure found that way is saved in properties.proptest-regressions and re-run first).
+    #![proptest_config(ProptestConfig {
+        cases: 64,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(20261122),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn random_scenes_miss_no_contact_and_conserve_mass_and_momentum(
