@@ -97,12 +97,13 @@ pub fn fragment_bodies(
     mut clock: ResMut<SimClock>,
     mut changed: ResMut<StateChanged>,
     mut commands: Commands,
+    mut absorbed: Local<Vec<(u64, Entity, f64)>>,
 ) {
     if records.records.is_empty() {
         return;
     }
     // (stable id, entity, absorbed energy): a merged pair is one body (b despawned).
-    let mut absorbed: Vec<(u64, Entity, f64)> = Vec::with_capacity(2 * records.records.len());
+    absorbed.clear();
     for r in &records.records {
         let merged = r.bonded && bodies.get(r.b).is_err();
         if merged {
@@ -114,7 +115,7 @@ pub fn fragment_bodies(
     }
     // Id allocation order must not depend on query order.
     absorbed.sort_by_key(|x| x.0);
-    for (_, entity, energy) in absorbed {
+    for &(_, entity, energy) in absorbed.iter() {
         let Ok((_, p, v, m, b, t, n)) = bodies.get(entity) else {
             continue;
         };
