@@ -111,15 +111,14 @@ impl NeighbourTable {
         if !self.valid || self.margin <= 0.0 || bodies.iter().len() != self.ids.len() {
             return false;
         }
+        if !self.reload(bodies) {
+            return false;
+        }
         let mut shift = DVec3::ZERO;
         let mut mass = 0.0;
-        for k in 0..self.entities.len() {
-            let Ok((_, _, p, v, _, _)) = bodies.get(self.entities[k]) else {
-                return false;
-            };
-            self.positions[k] = p.0;
-            self.velocities[k] = v.0;
-            shift += self.masses[k] * geometry.min_image(p.0 - self.built_positions[k]);
+        for k in 0..self.positions.len() {
+            shift +=
+                self.masses[k] * geometry.min_image(self.positions[k] - self.built_positions[k]);
             mass += self.masses[k];
         }
         let shift = shift / mass;
@@ -163,13 +162,24 @@ impl NeighbourTable {
     /// added, removed or resized. Pairs pushed from just outside the margin to just
     /// inside it (by at most an overlap, ~1e-9 b) are not added; they are met next step.
     pub fn refresh(&mut self, bodies: &BodyQuery, geometry: &BoxGeometry) {
+        self.reload(bodies);
+        self.update_pairs(geometry);
+    }
+
+    /// Copy current positions and velocities of the table's bodies from the world;
+    /// false if one of them no longer exists (the table is then stale).
+    fn reload(&mut self, bodies: &BodyQuery) -> bool {
+        let mut all_present = true;
         for k in 0..self.entities.len() {
-            if let Ok((_, _, p, v, _, _)) = bodies.get(self.entities[k]) {
-                self.positions[k] = p.0;
-                self.velocities[k] = v.0;
+            match bodies.get(self.entities[k]) {
+                Ok((_, _, p, v, _, _)) => {
+                    self.positions[k] = p.0;
+                    self.velocities[k] = v.0;
+                }
+                Err(_) => all_present = false,
             }
         }
-        self.update_pairs(geometry);
+        all_present
     }
 
     /// Closing speed w = (v_i − v_j)·n of a pair (> 0 when approaching).
