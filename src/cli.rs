@@ -45,7 +45,7 @@ pub enum Command {
     /// Numerical studies: speed against accuracy, and where methods fail.
     #[command(subcommand)]
     Study(StudyCommand),
-    /// Solve an inverse problem: genetic algorithm over ensemble-averaged costs (MODEL.md §12).
+    /// Solve an inverse problem: genetic algorithm over ensemble-averaged costs (docs/model.md §12).
     Optimize(inverse::OptimizeArgs),
     /// Scan one scenario field of an inverse problem's base scenario (ensemble cost per point).
     Scan(inverse::ScanArgs),

@@ -1,4 +1,4 @@
-//! The cloud generator (MODEL.md §2): N equal primary spheres placed at random
+//! The cloud generator (docs/model.md §2): N equal primary spheres placed at random
 //! without overlap in the periodic cube (random sequential addition over a cell
 //! grid), with velocities v_i = v̄ + v_rel ∘ λ_i, all from the scene's one RNG.
 //!

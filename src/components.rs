@@ -1,4 +1,4 @@
-//! Per-particle state (MODEL.md §1). Every body — a primary grain or an
+//! Per-particle state (docs/model.md §1). Every body — a primary grain or an
 //! agglomerate of grains — is one entity carrying all of these components.
 //!
 //! Components hold SI values in `f64`; vectors are [`glam::DVec3`]. The radius and
@@ -48,6 +48,14 @@ pub struct Hardness(pub f64);
 #[derive(Component, Debug, Clone, Copy, PartialEq)]
 pub struct Primaries(pub f64);
 
+/// The time t_ref [s] at which this body's [`Position`], [`Temperature`] and
+/// [`Hardness`] hold (docs/model.md §4, lazy state). The event core brings a body to
+/// the current time only when something reads it; read bodies through
+/// `systems::bodies::Bodies` (or `Simulation::bodies`), which does that for you.
+/// The stepped core keeps every body current and does not use it.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Default)]
+pub struct LocalTime(pub f64);
+
 /// Everything a particle entity is spawned with.
 #[derive(Bundle, Debug, Clone)]
 pub struct ParticleBundle {
@@ -60,6 +68,7 @@ pub struct ParticleBundle {
     pub temperature: Temperature,
     pub hardness: Hardness,
     pub primaries: Primaries,
+    pub local_time: LocalTime,
 }
 
 /// A plain-data copy of one body's state, used for output and by pure functions.
@@ -76,8 +85,13 @@ pub struct BodyState {
 }
 
 impl BodyState {
-    /// The components of this body, ready to spawn.
+    /// The components of this body at t = 0, ready to spawn.
     pub fn bundle(&self) -> ParticleBundle {
+        self.bundle_at(0.0)
+    }
+
+    /// The components of this body, its state holding at time `t` [s].
+    pub fn bundle_at(&self, t: f64) -> ParticleBundle {
         ParticleBundle {
             marker: Particle,
             id: ParticleId(self.id),
@@ -88,6 +102,7 @@ impl BodyState {
             temperature: Temperature(self.temperature),
             hardness: Hardness(self.hardness),
             primaries: Primaries(self.primaries),
+            local_time: LocalTime(t),
         }
     }
 }

@@ -1,7 +1,7 @@
 //! # agglo
 //!
 //! Particle agglomeration in thermochemically reacting granular flows, after
-//! Zohdi (2004, 2002) as specified in `MODEL.md`: a cloud of fine grains in a
+//! Zohdi (2004, 2002) as specified in `docs/model.md`: a cloud of fine grains in a
 //! periodic box collides, heats, softens, bonds, merges, fragments and cools.
 //!
 //! Particles are `bevy_ecs` entities ([`components`]); scene constants and run state

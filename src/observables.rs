@@ -1,4 +1,4 @@
-//! Observables of a run (MODEL.md §11) and the summary written by `--summary`.
+//! Observables of a run (docs/model.md §11) and the summary written by `--summary`.
 //!
 //! b_f is the number-average radius of the bodies, b* the radius of one sphere
 //! holding all the mass; Π04 = 1 − b_f / b* (P04 (7.1)), n_f = (b_f / b0)³ (P04 (7.2)),
@@ -51,7 +51,7 @@ impl RadiusStats {
     }
 }
 
-/// The agglomeration measures of MODEL.md §11.
+/// The agglomeration measures of docs/model.md §11.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Growth {
     /// Number-average radius b_f [m].

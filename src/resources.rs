@@ -1,6 +1,6 @@
 //! Scene-wide constants and run state, held as ECS resources.
 //!
-//! - [`MaterialConstants`]: the one material of the scene (MODEL.md §1) and the
+//! - [`MaterialConstants`]: the one material of the scene (docs/model.md §1) and the
 //!   hardness law with its overflow rule;
 //! - [`ImpactSettings`], [`StepControl`], [`BoxGeometry`]: how the step is computed;
 //! - [`SimClock`], [`Counters`], [`EnergyLedger`], [`InvariantReport`]: run state;
@@ -23,7 +23,7 @@ pub const STEFAN_BOLTZMANN: f64 = 5.670374419e-8;
 /// Exponents Q/(Rθ) above this give H = +∞ (exp(709) overflows f64).
 pub const HARDNESS_EXPONENT_LIMIT: f64 = 700.0;
 
-/// The scene's material (MODEL.md §1), SI units.
+/// The scene's material (docs/model.md §1), SI units.
 #[derive(Resource, Debug, Clone, Copy, PartialEq)]
 pub struct MaterialConstants {
     /// Density ρ [kg/m³].
@@ -76,7 +76,7 @@ impl MaterialConstants {
     }
 
     /// Hardness H = H0 · exp(Q / (R θ)) [Pa]; +∞ when the exponent exceeds 700
-    /// (MODEL.md §1, "hardness overflow"). Never NaN for θ > 0.
+    /// (docs/model.md §1, "hardness overflow"). Never NaN for θ > 0.
     pub fn hardness(&self, theta: f64) -> f64 {
         hardness(self.h0, self.activation_energy, theta)
     }
@@ -92,7 +92,7 @@ impl MaterialConstants {
     }
 }
 
-/// H0 · exp(Q / (R θ)) with the overflow rule of MODEL.md §1.
+/// H0 · exp(Q / (R θ)) with the overflow rule of docs/model.md §1.
 pub fn hardness(h0: f64, q: f64, theta: f64) -> f64 {
     if q == 0.0 {
         return h0;
@@ -105,7 +105,7 @@ pub fn hardness(h0: f64, q: f64, theta: f64) -> f64 {
     }
 }
 
-/// Parameters of the impact/heat solve (MODEL.md §5).
+/// Parameters of the impact/heat solve (docs/model.md §5).
 #[derive(Resource, Debug, Clone, Copy, PartialEq)]
 pub struct ImpactSettings {
     pub a0: f64,
@@ -170,7 +170,7 @@ impl BoxGeometry {
     }
 }
 
-/// How the step size is chosen (MODEL.md §4).
+/// How the step size is chosen (docs/model.md §4).
 #[derive(Resource, Debug, Clone, Copy, PartialEq)]
 pub enum StepControl {
     Adaptive {
@@ -215,7 +215,7 @@ impl StepControl {
     }
 }
 
-/// Relative gap tolerance: g ≤ tol·(b_i + b_j) counts as touching (MODEL.md §4).
+/// Relative gap tolerance: g ≤ tol·(b_i + b_j) counts as touching (docs/model.md §4).
 pub const CONTACT_TOLERANCE: f64 = 1e-9;
 
 /// Physics options that systems read (which rule, which integrator).
@@ -240,7 +240,7 @@ pub struct SimClock {
     pub clamped_at_min: bool,
     /// True when the last step merged or fragmented bodies (which may then overlap legitimately).
     pub bodies_reshaped: bool,
-    /// True when the last step pushed an overlapping bouncing pair apart (MODEL.md §5),
+    /// True when the last step pushed an overlapping bouncing pair apart (docs/model.md §5),
     /// which may push one of them into a third body.
     pub bodies_pushed: bool,
 }
@@ -274,7 +274,7 @@ pub struct Counters {
     pub invariant_violations: u64,
 }
 
-/// Energy bookkeeping (MODEL.md §10): E = kinetic + Σ m C θ changes only by these.
+/// Energy bookkeeping (docs/model.md §10): E = kinetic + Σ m C θ changes only by these.
 #[derive(Resource, Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct EnergyLedger {
     /// Reaction heat added, Σ 2 α a_c over impacts [J].
@@ -350,6 +350,47 @@ pub struct ImpactRecord {
 pub struct ImpactRecords {
     pub records: Vec<ImpactRecord>,
 }
+
+/// What happened to bodies this step, for the stages after it (the event core files
+/// it; diagnostics check it). Cleared when the step closes.
+#[derive(Resource, Debug, Default)]
+pub struct StepEvents {
+    /// Bodies changed this step, each with its contribution to the totals just before
+    /// its first change (a body may appear more than once; the first entry counts).
+    pub touched: Vec<(Entity, crate::systems::diagnostics::Totals)>,
+    /// Bodies created (fragments).
+    pub spawned: Vec<Entity>,
+    /// Stable ids of bodies removed (merged away, fragmented).
+    pub despawned: Vec<u64>,
+    /// Event-core slots whose prediction was used up without the body changing.
+    pub repredict: Vec<u32>,
+    /// How many `touched`, `spawned` and `despawned` entries the event core has filed.
+    pub filed: usize,
+    pub filed_spawned: usize,
+    pub filed_despawned: usize,
+}
+
+impl StepEvents {
+    /// Record that `entity` is about to change; `before` is its contribution now.
+    pub fn touch(&mut self, entity: Entity, before: crate::systems::diagnostics::Totals) {
+        self.touched.push((entity, before));
+    }
+
+    pub fn clear(&mut self) {
+        self.touched.clear();
+        self.spawned.clear();
+        self.despawned.clear();
+        self.repredict.clear();
+        self.filed = 0;
+        self.filed_spawned = 0;
+        self.filed_despawned = 0;
+    }
+}
+
+/// True when bodies hold their state at their own [`crate::components::LocalTime`]
+/// (the event core) rather than at the current time (the stepped core).
+#[derive(Resource, Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct LazyState(pub bool);
 
 /// Set when impacts changed velocities (or fragmentation the body set) this step, so the
 /// time-step system must refresh contact detection's neighbour table before using it.

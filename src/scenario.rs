@@ -5,7 +5,7 @@
 //! control, physics toggles, seed, output). Parsing reports the field path of a
 //! type error or unknown field (via `serde_path_to_error`); [`Scenario::validate`]
 //! then checks every range and names the field and the allowed range. Symbols
-//! follow MODEL.md §1: all values SI.
+//! follow docs/model.md §1: all values SI.
 
 use std::path::Path;
 
@@ -49,7 +49,7 @@ pub struct Domain {
     pub half_width: f64,
 }
 
-/// The initial cloud of N equal primary spheres (MODEL.md §2).
+/// The initial cloud of N equal primary spheres (docs/model.md §2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Cloud {
@@ -99,7 +99,7 @@ pub enum VelocityDistribution {
     Positive,
 }
 
-/// One material per scene (MODEL.md §1). Symbols as in MODEL.md.
+/// One material per scene (docs/model.md §1). Symbols as in docs/model.md.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 #[allow(non_snake_case)]
@@ -135,7 +135,7 @@ pub struct Material {
     pub theta_s: f64,
 }
 
-/// The impact/heat solve (MODEL.md §5).
+/// The impact/heat solve (docs/model.md §5).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ImpactModel {
@@ -205,7 +205,7 @@ pub enum SolverKind {
     Plain,
 }
 
-/// End time and step control (MODEL.md §4).
+/// End time and step control (docs/model.md §4).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TimeControl {
@@ -217,6 +217,33 @@ pub struct TimeControl {
     /// Hard cap on the number of steps (a run that reaches it stops with an error).
     #[serde(default = "default_max_steps")]
     pub max_steps: u64,
+    /// Which core advances the scene (docs/model.md §4): `auto` picks the event core
+    /// whenever the scene allows it.
+    #[serde(default, skip_serializing_if = "Core::is_auto")]
+    pub core: Core,
+}
+
+/// The two ways of advancing a scene (docs/model.md §4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Core {
+    /// The event core for adaptive stepping with c = 1, the `all` contact rule and
+    /// non-explicit cooling; the stepped core otherwise.
+    #[default]
+    Auto,
+    /// Event-driven: every step lands on the next contact, costing O(k log N).
+    Events,
+    /// The event core predicting every pair through every image: O(N²) per event.
+    /// A reference for tests, not for production runs.
+    EventsBruteForce,
+    /// Every stage visits every body each step (fixed Δt, c ≠ 1, the papers' rules).
+    Stepped,
+}
+
+impl Core {
+    fn is_auto(&self) -> bool {
+        *self == Core::Auto
+    }
 }
 
 fn default_max_steps() -> u64 {
@@ -271,7 +298,7 @@ impl Default for Stepping {
     }
 }
 
-/// Which physics systems the scene runs (MODEL.md §3: a scene runs only what it needs).
+/// Which physics systems the scene runs (docs/model.md §3: a scene runs only what it needs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Physics {
@@ -312,9 +339,12 @@ pub enum CoolingMethod {
     Off,
     /// Forward Euler (the papers' choice, P04 (6.21)); conditionally stable.
     Explicit,
-    /// Backward Euler by safeguarded Newton; unconditionally stable and monotone.
+    /// Backward Euler by safeguarded Newton; unconditionally stable and monotone. The
+    /// event core integrates cooling accurately instead (as `exact`).
     #[default]
     Implicit,
+    /// Accurate integration over each interval (≤ 1e-9 relative to the closed forms).
+    Exact,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
@@ -327,7 +357,7 @@ pub enum ContactRule {
     NearestNeighbour,
 }
 
-/// Invariant checks (MODEL.md §10).
+/// Invariant checks (docs/model.md §10).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Diagnostics {
@@ -469,6 +499,30 @@ impl Scenario {
         self.cloud.count as f64 * 4.0 / 3.0 * std::f64::consts::PI * b.powi(3) / side.powi(3)
     }
 
+    /// Why this scene cannot run on the event core, if it cannot.
+    fn event_core_obstacle(&self) -> Option<&'static str> {
+        match self.time.stepping {
+            Stepping::Adaptive { step_factor, .. } if step_factor == 1.0 => {}
+            _ => return Some("adaptive stepping with step_factor = 1 (time.stepping)"),
+        }
+        if self.physics.contact_rule != ContactRule::All {
+            return Some("physics.contact_rule = \"all\"");
+        }
+        if self.physics.cooling == CoolingMethod::Explicit {
+            return Some("physics.cooling other than \"explicit\"");
+        }
+        None
+    }
+
+    /// True when this scene runs on the event core (docs/model.md §4).
+    pub fn uses_event_core(&self) -> bool {
+        match self.time.core {
+            Core::Auto => self.event_core_obstacle().is_none(),
+            Core::Events | Core::EventsBruteForce => true,
+            Core::Stepped => false,
+        }
+    }
+
     /// Check every range; all problems are reported together, each with its field path.
     pub fn validate(&self) -> Result<(), ScenarioError> {
         let mut v = Validator::default();
@@ -596,6 +650,14 @@ impl Scenario {
                 v.positive("time.stepping.adaptive.skin", *skin);
             }
             Stepping::Fixed { dt } => v.positive("time.stepping.fixed.dt", *dt),
+        }
+        if matches!(t.core, Core::Events | Core::EventsBruteForce)
+            && let Some(why) = self.event_core_obstacle()
+        {
+            v.issues.push(ValidationIssue {
+                path: "time.core".into(),
+                message: format!("the event core needs {why}"),
+            });
         }
         if self.diagnostics.every == 0 {
             v.push("diagnostics.every", "≥ 1", 0.0);

@@ -1,7 +1,7 @@
 //! The step pipeline, the plugin API and the [`Simulation`] that runs a scenario.
 //!
 //! The pipeline is read here, top to bottom, in [`StepSystems`]: the sets are
-//! chained once, in the order of MODEL.md §3 (with the step-size choice moved after
+//! chained once, in the order of docs/model.md §3 (with the step-size choice moved after
 //! the events it depends on — see `systems/time_step.rs`). Physics is added by
 //! [`SimPlugin`]s — the built-ins in `systems/` and any extension alike — which put
 //! systems into these sets. `First`/`Last` are empty slots for extensions.
@@ -17,8 +17,8 @@ use bevy_ecs::system::ScheduleSystem;
 
 use crate::cloud::generate_cloud;
 use crate::components::{
-    BodyState, Hardness, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature,
-    Velocity,
+    BodyState, Hardness, LocalTime, Mass, Particle, ParticleId, Position, Primaries, Radius,
+    Temperature, Velocity,
 };
 use crate::error::SimError;
 use crate::observables::Summary;
@@ -35,23 +35,25 @@ pub struct SimStep;
 pub enum StepSystems {
     /// 0. Empty slot for extensions, before anything else.
     First,
-    /// 1. Contact detection: periodic cell grid, contacts of this step (MODEL.md §4).
+    /// 1. Contact detection: periodic cell grid, contacts of this step (docs/model.md §4).
     Contact,
-    /// 2. Impact / heat solve for every contact (MODEL.md §5).
+    /// 2. Impact / heat solve for every contact (docs/model.md §5).
     Impact,
-    /// 3. Merging of bonded pairs (MODEL.md §6).
+    /// 3. Merging of bonded pairs (docs/model.md §6).
     Merge,
-    /// 4. Fragmentation of bodies that absorbed enough energy (MODEL.md §7).
+    /// 4. Fragmentation of bodies that absorbed enough energy (docs/model.md §7).
     Fragment,
-    /// 5. The next step size from post-impact velocities (MODEL.md §4).
+    /// 5. The next step size from post-impact velocities (docs/model.md §4).
     TimeStep,
-    /// 6. Cooling by convection and radiation (MODEL.md §8).
+    /// 5b. External forces over the coming step (extensions; see [`SimBuilder::add_force_systems`]).
+    Forces,
+    /// 6. Cooling by convection and radiation (docs/model.md §8).
     Cooling,
     /// 7. Drift r ← r + Δt v.
     Drift,
-    /// 8. Periodic wrapping (MODEL.md §9).
+    /// 8. Periodic wrapping (docs/model.md §9).
     Boundary,
-    /// 9. Invariant checks (MODEL.md §10).
+    /// 9. Invariant checks (docs/model.md §10).
     Diagnostics,
     /// 10. Empty slot for extensions (recording, statistics), after the step.
     Last,
@@ -59,13 +61,14 @@ pub enum StepSystems {
 
 impl StepSystems {
     /// Every stage, in pipeline order.
-    pub const ORDER: [StepSystems; 11] = [
+    pub const ORDER: [StepSystems; 12] = [
         StepSystems::First,
         StepSystems::Contact,
         StepSystems::Impact,
         StepSystems::Merge,
         StepSystems::Fragment,
         StepSystems::TimeStep,
+        StepSystems::Forces,
         StepSystems::Cooling,
         StepSystems::Drift,
         StepSystems::Boundary,
@@ -134,6 +137,9 @@ impl SimBuilder {
         world.init_resource::<ContactList>();
         world.init_resource::<ImpactRecords>();
         world.init_resource::<StateChanged>();
+        world.init_resource::<StepEvents>();
+        world.insert_resource(LazyState(scenario.uses_event_core()));
+        world.init_resource::<systems::events::ForcesPresent>();
 
         let mut schedule = Schedule::new(SimStep);
         schedule.set_executor(SingleThreadedExecutor::new());
@@ -150,6 +156,7 @@ impl SimBuilder {
                 StepSystems::Merge,
                 StepSystems::Fragment,
                 StepSystems::TimeStep,
+                StepSystems::Forces,
                 StepSystems::Cooling,
                 StepSystems::Drift,
                 StepSystems::Boundary,
@@ -185,6 +192,20 @@ impl SimBuilder {
     ) -> &mut Self {
         self.schedule.add_systems(systems.in_set(stage));
         self
+    }
+
+    /// Add force systems (drag, gravity, …) to the `Forces` stage. They must read and
+    /// write bodies through [`crate::systems::bodies::Bodies`], which brings each body
+    /// to the current time and tells the event core to re-predict it; with forces in
+    /// the scene the event core ends a step at every event, so forces act on bodies
+    /// whose cells are current.
+    pub fn add_force_systems<M>(
+        &mut self,
+        systems: impl IntoScheduleConfigs<ScheduleSystem, M>,
+    ) -> &mut Self {
+        self.world
+            .insert_resource(systems::events::ForcesPresent(true));
+        self.add_systems(StepSystems::Forces, systems)
     }
 
     pub fn insert_resource<R: Resource>(&mut self, value: R) -> &mut Self {
@@ -243,7 +264,8 @@ fn short_name(full: &str) -> String {
 }
 
 /// Closes the step: t ← t + Δt (exactly T on the last step), L ← L + 1.
-fn advance_clock(mut clock: ResMut<SimClock>) {
+fn advance_clock(mut clock: ResMut<SimClock>, mut events: ResMut<StepEvents>) {
+    events.clear();
     let next = clock.time + clock.dt;
     // Land exactly on T when the step was cut to the remaining time.
     clock.time = if clock.end - next <= 1e-12 * clock.end {
@@ -359,7 +381,42 @@ impl Simulation {
                 });
             }
         }
+        self.bring_all_to_now();
         Ok(())
+    }
+
+    /// Bring every body to the current time (event core: lazy state, docs/model.md §4),
+    /// tallying the heat lost by cooling. Done at the end of a run; O(N).
+    pub fn bring_all_to_now(&mut self) {
+        if !self.world.resource::<LazyState>().0 {
+            return;
+        }
+        let now = self.clock().time;
+        let clockwork = self.clockwork();
+        let mut lost = 0.0;
+        let mut query = self.world.query_filtered::<(
+            &mut Position,
+            &Velocity,
+            &Mass,
+            &Radius,
+            &mut Temperature,
+            &mut Hardness,
+            &mut LocalTime,
+        ), With<Particle>>();
+        for (mut p, v, m, b, mut t, mut h, mut lt) in query.iter_mut(&mut self.world) {
+            lost += systems::bodies::bring_to(
+                now, &clockwork, &mut p.0, v.0, m.0, b.0, &mut t.0, &mut h.0, &mut lt.0,
+            );
+        }
+        self.world.resource_mut::<EnergyLedger>().cooling_loss += lost;
+    }
+
+    fn clockwork(&self) -> systems::bodies::Clockwork {
+        systems::bodies::Clockwork::new(
+            self.world.resource::<BoxGeometry>(),
+            self.world.resource::<MaterialConstants>(),
+            self.world.resource::<PhysicsOptions>(),
+        )
     }
 
     /// Every body, sorted by stable id (from a shared reference, so observers of
@@ -374,20 +431,32 @@ impl Simulation {
             &Temperature,
             &Hardness,
             &Primaries,
+            &LocalTime,
         ), With<Particle>>() else {
             return Vec::new(); // components never registered: no particles
         };
+        // Event core: each body is brought to the current time as it is read.
+        let lazy = self.world.resource::<LazyState>().0;
+        let now = self.clock().time;
+        let clockwork = self.clockwork();
         let mut bodies: Vec<BodyState> = query
             .iter(&self.world)
-            .map(|(id, p, v, m, b, t, h, n)| BodyState {
-                id: id.0,
-                position: p.0,
-                velocity: v.0,
-                mass: m.0,
-                radius: b.0,
-                temperature: t.0,
-                hardness: h.0,
-                primaries: n.0,
+            .map(|(id, p, v, m, b, t, h, n, lt)| {
+                let state = BodyState {
+                    id: id.0,
+                    position: p.0,
+                    velocity: v.0,
+                    mass: m.0,
+                    radius: b.0,
+                    temperature: t.0,
+                    hardness: h.0,
+                    primaries: n.0,
+                };
+                if lazy {
+                    systems::bodies::state_at(&state, lt.0, now, &clockwork)
+                } else {
+                    state
+                }
             })
             .collect();
         bodies.sort_by_key(|b| b.id);
@@ -401,7 +470,7 @@ impl Simulation {
             .map_or(0, |mut q| q.iter(&self.world).count())
     }
 
-    /// Observables (MODEL.md §11), counters and invariant errors of the run so far.
+    /// Observables (docs/model.md §11), counters and invariant errors of the run so far.
     pub fn summary(&self) -> Summary {
         let bodies = self.bodies();
         Summary::new(self, &bodies)

@@ -1,4 +1,4 @@
-//! Stage 8 — periodic boundary (MODEL.md §9, P02 Remark 2): a coordinate leaving
+//! Stage 8 — periodic boundary (docs/model.md §9, P02 Remark 2): a coordinate leaving
 //! [−D, D] re-enters at the opposite face with the same velocity. P04's
 //! "r_ix = −r_ix" is read as the same periodic re-entry. Momentum is untouched.
 //!

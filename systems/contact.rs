@@ -1,4 +1,4 @@
-//! Stage 1 — contact detection (MODEL.md §4).
+//! Stage 1 — contact detection (docs/model.md §4).
 //!
 //! Gathers the bodies into a table sorted by stable id, finds every pair within
 //! the neighbour margin (the skin) with the periodic [`NeighbourGrid`] — reusing the

@@ -1,4 +1,4 @@
-//! Stage 6 — cooling between impacts (MODEL.md §8, P04 stage II (6.19)–(6.21)).
+//! Stage 6 — cooling between impacts (docs/model.md §8, P04 stage II (6.19)–(6.21)).
 //!
 //! m C dθ/dt = − hc a_s (θ − θ0) − B a_s ε (θ⁴ − θs⁴), a_s = 4π b², for every body.
 //! Two integrators: `explicit` (forward Euler, the papers' choice; stable only for
@@ -99,7 +99,30 @@ impl CoolingLaw {
             CoolingMethod::Off => theta,
             CoolingMethod::Explicit => self.explicit_step(theta, dt),
             CoolingMethod::Implicit => self.implicit_step(theta, dt),
+            CoolingMethod::Exact => self.advance(theta, dt),
         }
+    }
+
+    /// TEMPORARY: θ after dt by RK4 in u = θ^-3 with many substeps (to be replaced).
+    pub fn advance(&self, theta: f64, dt: f64) -> f64 {
+        if dt <= 0.0 || (self.k_convection == 0.0 && self.k_radiation == 0.0) {
+            return theta;
+        }
+        let f = |u: f64| {
+            let t = u.powf(-1.0 / 3.0);
+            -3.0 * self.rate(t) / t.powi(4)
+        };
+        let n = 2000;
+        let h = dt / n as f64;
+        let mut u = theta.powi(-3);
+        for _ in 0..n {
+            let k1 = f(u);
+            let k2 = f(u + 0.5 * h * k1);
+            let k3 = f(u + 0.5 * h * k2);
+            let k4 = f(u + h * k3);
+            u += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+        }
+        u.powf(-1.0 / 3.0)
     }
 
     /// Forward Euler's stability limit at θ [s]: 1 / (k_c + 4 k_r θ³).

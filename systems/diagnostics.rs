@@ -1,4 +1,4 @@
-//! Stage 9 — invariant checks (MODEL.md §10), switchable per scenario.
+//! Stage 9 — invariant checks (docs/model.md §10), switchable per scenario.
 //!
 //! Total mass and momentum must stay constant to rounding; the energy
 //! E = Σ ½ m v² + Σ m C θ may change only by the tallied reaction heat, fracture
@@ -13,7 +13,9 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 
 use crate::components::{Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity};
-use crate::resources::{Counters, EnergyLedger, InvariantReport, MaterialConstants, SimClock};
+use crate::resources::{
+    Counters, EnergyLedger, InvariantReport, MaterialConstants, SimClock, StepEvents,
+};
 
 /// How often and how strictly to check.
 #[derive(Resource, Debug, Clone, Copy, PartialEq)]
@@ -105,6 +107,202 @@ pub fn energy_error(now: f64, initial: f64, ledger: &EnergyLedger) -> f64 {
     (now - expected).abs() / turnover.max(f64::MIN_POSITIVE)
 }
 
+/// Compensated (Neumaier) running sums of the totals, updated from the bodies each step
+/// touches (event core): O(k) per step instead of O(N).
+#[derive(Resource, Debug, Clone, Default)]
+pub struct RunningTotals {
+    sums: [(f64, f64); 5],
+    /// Steps between full recomputations (at least the initial body count).
+    pub full_every: u64,
+}
+
+impl RunningTotals {
+    pub fn new(start: &Totals, full_every: u64) -> Self {
+        let mut r = Self {
+            sums: [(0.0, 0.0); 5],
+            full_every: full_every.max(1),
+        };
+        r.reset(start);
+        r
+    }
+
+    fn reset(&mut self, t: &Totals) {
+        let values = [
+            t.mass,
+            t.momentum.x,
+            t.momentum.y,
+            t.momentum.z,
+            t.kinetic + t.thermal,
+        ];
+        for (s, v) in self.sums.iter_mut().zip(values) {
+            *s = (v, 0.0);
+        }
+    }
+
+    fn add(&mut self, t: &Totals, sign: f64) {
+        let values = [
+            t.mass,
+            t.momentum.x,
+            t.momentum.y,
+            t.momentum.z,
+            t.kinetic + t.thermal,
+        ];
+        for ((sum, c), v) in self.sums.iter_mut().zip(values) {
+            let x = sign * v;
+            let next = *sum + x;
+            *c += if sum.abs() >= x.abs() {
+                (*sum - next) + x
+            } else {
+                (x - next) + *sum
+            };
+            *sum = next;
+        }
+    }
+
+    fn value(&self, k: usize) -> f64 {
+        self.sums[k].0 + self.sums[k].1
+    }
+
+    /// The running totals (kinetic holds kinetic + thermal; thermal is 0).
+    pub fn totals(&self) -> Totals {
+        Totals {
+            mass: self.value(0),
+            momentum: DVec3::new(self.value(1), self.value(2), self.value(3)),
+            momentum_scale: 0.0,
+            kinetic: self.value(4),
+            thermal: 0.0,
+        }
+    }
+}
+
+type TotalsQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static ParticleId,
+        &'static Position,
+        &'static Velocity,
+        &'static Mass,
+        &'static Radius,
+        &'static Temperature,
+    ),
+    With<Particle>,
+>;
+
+/// The event core's checks: the totals follow the bodies each step touched; every
+/// `full_every` steps and at the end they are recomputed over all bodies.
+#[allow(clippy::too_many_arguments)]
+pub fn check_step_totals(
+    settings: Res<DiagnosticsSettings>,
+    material: Res<MaterialConstants>,
+    clock: Res<SimClock>,
+    ledger: Res<EnergyLedger>,
+    events: Res<StepEvents>,
+    bodies: TotalsQuery,
+    mut running: ResMut<RunningTotals>,
+    mut report: ResMut<InvariantReport>,
+    mut counters: ResMut<Counters>,
+    mut seen: Local<Vec<(Entity, Totals)>>,
+) {
+    let c = material.heat_capacity;
+    seen.clear();
+    seen.extend_from_slice(&events.touched);
+    // The first record of each body is its state before the step changed it.
+    seen.sort_by_key(|x| x.0);
+    seen.dedup_by_key(|x| x.0);
+    let mut violations = Vec::new();
+    let step = clock.step;
+    let changed = seen
+        .iter()
+        .map(|x| x.0)
+        .chain(events.spawned.iter().copied());
+    for entity in changed {
+        let Ok((id, p, v, m, b, t)) = bodies.get(entity) else {
+            continue; // removed this step
+        };
+        let finite = p.0.is_finite() && v.0.is_finite() && m.0.is_finite() && b.0.is_finite();
+        if !finite || !t.0.is_finite() || t.0 <= 0.0 || m.0 <= 0.0 {
+            violations.push(format!(
+                "step {step}: body {} has invalid state (r = {}, v = {}, m = {:e}, b = {:e}, θ = {:e})",
+                id.0, p.0, v.0, m.0, b.0, t.0
+            ));
+        }
+        running.add(&crate::systems::bodies::contribution(m.0, v.0, t.0, c), 1.0);
+    }
+    for (_, before) in seen.iter() {
+        running.add(before, -1.0);
+    }
+    counters.invariant_violations += violations.len() as u64;
+    for v in violations {
+        if report.violations.len() < MAX_REPORTED {
+            report.violations.push(v);
+        }
+    }
+    let last = clock.time + clock.dt >= clock.end;
+    if (clock.step + 1).is_multiple_of(running.full_every) || last {
+        // Full recomputation: also catches a change no system reported.
+        check_now(
+            &settings,
+            &material,
+            step,
+            &ledger,
+            &bodies,
+            &mut report,
+            &mut counters,
+        );
+        let all = totals(
+            bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)),
+            material.heat_capacity,
+        );
+        running.reset(&all);
+    } else if (clock.step + 1).is_multiple_of(settings.every) {
+        let now = running.totals();
+        compare(&settings, step, &now, &ledger, &mut report, &mut counters);
+    }
+}
+
+/// Compare totals with the reference and the ledger; record violations.
+fn compare(
+    settings: &DiagnosticsSettings,
+    step: u64,
+    now: &Totals,
+    ledger: &EnergyLedger,
+    report: &mut InvariantReport,
+    counters: &mut Counters,
+) {
+    let mut violations: Vec<String> = Vec::new();
+    let mass_error = (now.mass - report.initial_mass).abs() / report.initial_mass;
+    let p0 = DVec3::from_array(report.initial_momentum);
+    let momentum_error =
+        (now.momentum - p0).length() / report.momentum_scale.max(f64::MIN_POSITIVE);
+    let energy_error = energy_error(now.energy(), report.initial_energy, ledger);
+    let tol = settings.tolerance;
+    if mass_error.is_nan() || mass_error > tol {
+        violations.push(format!(
+            "step {step}: total mass off by {mass_error:.3e} (relative)"
+        ));
+    }
+    if momentum_error.is_nan() || momentum_error > tol {
+        violations.push(format!(
+            "step {step}: total momentum off by {momentum_error:.3e} (relative to Σ m|v|)"
+        ));
+    }
+    if energy_error.is_nan() || energy_error > tol {
+        violations.push(format!(
+            "step {step}: energy ledger off by {energy_error:.3e} (relative to E0 + energy turned over)"
+        ));
+    }
+    report.max_mass_error = report.max_mass_error.max(mass_error);
+    report.max_momentum_error = report.max_momentum_error.max(momentum_error);
+    report.max_energy_error = report.max_energy_error.max(energy_error);
+    counters.invariant_violations += violations.len() as u64;
+    for v in violations {
+        if report.violations.len() < MAX_REPORTED {
+            report.violations.push(v);
+        }
+    }
+}
+
 /// Run every check once and record violations.
 #[allow(clippy::type_complexity)]
 pub fn check_now(
@@ -136,40 +334,17 @@ pub fn check_now(
             ));
         }
     }
-    let now = totals(
-        bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)),
-        material.heat_capacity,
-    );
-    let mass_error = (now.mass - report.initial_mass).abs() / report.initial_mass;
-    let p0 = DVec3::from_array(report.initial_momentum);
-    let momentum_error =
-        (now.momentum - p0).length() / report.momentum_scale.max(f64::MIN_POSITIVE);
-    let energy_error = energy_error(now.energy(), report.initial_energy, ledger);
-    let tol = settings.tolerance;
-    if mass_error.is_nan() || mass_error > tol {
-        violations.push(format!(
-            "step {step}: total mass off by {mass_error:.3e} (relative)"
-        ));
-    }
-    if momentum_error.is_nan() || momentum_error > tol {
-        violations.push(format!(
-            "step {step}: total momentum off by {momentum_error:.3e} (relative to Σ m|v|)"
-        ));
-    }
-    if energy_error.is_nan() || energy_error > tol {
-        violations.push(format!(
-            "step {step}: energy ledger off by {energy_error:.3e} (relative to E0 + energy turned over)"
-        ));
-    }
-    report.max_mass_error = report.max_mass_error.max(mass_error);
-    report.max_momentum_error = report.max_momentum_error.max(momentum_error);
-    report.max_energy_error = report.max_energy_error.max(energy_error);
     counters.invariant_violations += violations.len() as u64;
     for v in violations {
         if report.violations.len() < MAX_REPORTED {
             report.violations.push(v);
         }
     }
+    let now = totals(
+        bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)),
+        material.heat_capacity,
+    );
+    compare(settings, step, &now, ledger, report, counters);
 }
 
 #[cfg(test)]

@@ -1,4 +1,4 @@
-//! Stage 4 — fragmentation (MODEL.md §7, P04 §5).
+//! Stage 4 — fragmentation (docs/model.md §7, P04 §5).
 //!
 //! For every body that took part in an impact this step (a merged body counts the
 //! energy of both partners), with δK the kinetic energy it lost in the pair's
@@ -11,7 +11,8 @@
 //! from their heat (P04 (6.8)). Pieces get new ids; the parent is despawned.
 //!
 //! Reads: [`ImpactRecords`] (after merging). Writes: despawns/spawns bodies,
-//! [`Counters`], [`EnergyLedger`], [`IdAllocator`], [`SimClock::bodies_reshaped`].
+//! [`Counters`], [`EnergyLedger`], [`IdAllocator`], [`SimClock::bodies_reshaped`],
+//! [`StepEvents`] (pieces spawned, parent removed).
 
 use bevy_ecs::prelude::*;
 use glam::DVec3;
@@ -21,7 +22,7 @@ use crate::components::{
 };
 use crate::resources::{
     BoxGeometry, Counters, EnergyLedger, IdAllocator, ImpactRecords, MaterialConstants, SimClock,
-    StateChanged,
+    StateChanged, StepEvents,
 };
 
 /// Number of equal pieces k = ⌊(1 + x)³⌋, x = δK / (4π γ b0²) (P04 (5.2)).
@@ -96,6 +97,7 @@ pub fn fragment_bodies(
     mut ledger: ResMut<EnergyLedger>,
     mut clock: ResMut<SimClock>,
     mut changed: ResMut<StateChanged>,
+    mut events: ResMut<StepEvents>,
     mut commands: Commands,
     mut absorbed: Local<Vec<(u64, Entity, f64)>>,
 ) {
@@ -116,7 +118,7 @@ pub fn fragment_bodies(
     // Id allocation order must not depend on query order.
     absorbed.sort_by_key(|x| x.0);
     for &(_, entity, energy) in absorbed.iter() {
-        let Ok((_, p, v, m, b, t, n)) = bodies.get(entity) else {
+        let Ok((id, p, v, m, b, t, n)) = bodies.get(entity) else {
             continue;
         };
         let k = piece_count(energy, b.0, material.gamma);
@@ -139,9 +141,13 @@ pub fn fragment_bodies(
                 hardness: material.hardness(theta),
                 primaries: n.0 / pieces as f64,
             };
-            commands.spawn(state.bundle());
+            // Pieces are placed now: their state holds at the current time.
+            events
+                .spawned
+                .push(commands.spawn(state.bundle_at(clock.time)).id());
         }
         commands.entity(entity).despawn();
+        events.despawned.push(id.0);
         counters.fragmentations += 1;
         counters.fragments_created += pieces;
         ledger.fracture_energy += dz;

@@ -1,5 +1,5 @@
 //! The periodic neighbour search used by contact detection and step-size
-//! selection (MODEL.md §4): every pair whose gap is at most a margin, found in
+//! selection (docs/model.md §4): every pair whose gap is at most a margin, found in
 //! O(N) for any radius distribution.
 //!
 //! Bodies are binned into a *hierarchy* of periodic cell grids: level k has cells

@@ -1,4 +1,4 @@
-//! Stage 2 — the impact / heat solve (MODEL.md §5).
+//! Stage 2 — the impact / heat solve (docs/model.md §5).
 //!
 //! For every contact of this step (in the order contact detection chose), solve
 //! the staggered fixed point e* = G(e*) of restitution, impact duration, contact
@@ -11,7 +11,7 @@
 //! [`Counters`], [`EnergyLedger`], [`StateChanged`].
 //!
 //! The solve itself is the plain function [`solve_pair`], free of ECS types, so it
-//! can be tested against the closed form of MODEL.md §14 and benchmarked alone.
+//! can be tested against the closed form of docs/model.md §14 and benchmarked alone.
 
 use bevy_ecs::prelude::*;
 use glam::DVec3;
@@ -133,7 +133,7 @@ pub struct PairOutcome {
     pub method: SolveMethod,
 }
 
-/// Evaluate G(e) (MODEL.md §5, steps 1–7). `normal` is the unit vector from i to j;
+/// Evaluate G(e) (docs/model.md §5, steps 1–7). `normal` is the unit vector from i to j;
 /// the pair must be approaching: (v_i − v_j)·n > 0.
 pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: f64) -> Trial {
     let (mi, mj) = (bi.mass, bj.mass);
@@ -354,7 +354,7 @@ fn illinois(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64, tol: f64) -> (f64,
     (root, iterations)
 }
 
-/// Solve one impact (MODEL.md §5): the fixed point, then bond (e* = 0) or bounce.
+/// Solve one impact (docs/model.md §5): the fixed point, then bond (e* = 0) or bounce.
 pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3) -> PairOutcome {
     let fp = find_fixed_point(model, |e| trial(model, bi, bj, normal, e).g);
     let (mi, mj) = (bi.mass, bj.mass);
@@ -409,7 +409,7 @@ pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3
 }
 
 /// Closed-form restitution for two identical spheres head on without softening
-/// (MODEL.md §14): λ = 2 ρ v_p² / (3 H β), each approaching at speed v_p.
+/// (docs/model.md §14): λ = 2 ρ v_p² / (3 H β), each approaching at speed v_p.
 pub fn closed_form_restitution(a0: f64, af: f64, lambda: f64) -> f64 {
     if lambda >= af {
         return 0.0;
@@ -561,7 +561,7 @@ mod tests {
 
     #[test]
     fn a0_zero_oscillates_and_the_fallback_finds_the_root() {
-        // λ = 0.5 < af = 1: the plain iteration cycles 0 ↔ 1 − λ forever (MODEL.md §5).
+        // λ = 0.5 < af = 1: the plain iteration cycles 0 ↔ 1 − λ forever (docs/model.md §5).
         let m = model(0.0, 1.0, 1.0);
         let rho = 2000.0;
         let vp = (0.5 * 3.0 * m.h0 * m.beta / (2.0 * rho)).sqrt();

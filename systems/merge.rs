@@ -1,4 +1,4 @@
-//! Stage 3 — merging (MODEL.md §6).
+//! Stage 3 — merging (docs/model.md §6).
 //!
 //! Every pair the impact solve bonded becomes one body: masses, momenta, primaries
 //! and heat (one C) add; the position is the centre of mass (minimum image); radius
@@ -6,14 +6,14 @@
 //! is despawned. Mass and momentum are conserved to rounding.
 //!
 //! Reads: [`ImpactRecords`]. Writes: the survivor's components, despawns the partner,
-//! [`SimClock::bodies_reshaped`].
+//! [`SimClock::bodies_reshaped`], [`StepEvents`] (the partner's id).
 
 use bevy_ecs::prelude::*;
 
 use crate::components::{
     Hardness, Mass, Particle, Position, Primaries, Radius, Temperature, Velocity,
 };
-use crate::resources::{BoxGeometry, ImpactRecords, MaterialConstants, SimClock};
+use crate::resources::{BoxGeometry, ImpactRecords, MaterialConstants, SimClock, StepEvents};
 
 type MergeQuery<'w, 's> = Query<
     'w,
@@ -37,6 +37,7 @@ pub fn merge_bonded(
     geometry: Res<BoxGeometry>,
     mut bodies: MergeQuery,
     mut clock: ResMut<SimClock>,
+    mut events: ResMut<StepEvents>,
     mut commands: Commands,
 ) {
     for record in records.records.iter().filter(|r| r.bonded) {
@@ -55,6 +56,7 @@ pub fn merge_bonded(
         ra.0 = material.radius_of_mass(m);
         ha.0 = material.hardness(ta.0);
         commands.entity(record.b).despawn();
+        events.despawned.push(record.id_b);
         clock.bodies_reshaped = true;
     }
 }

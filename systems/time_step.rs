@@ -1,8 +1,8 @@
-//! Stage 5 — the next time-step size (MODEL.md §4, P04 (6.14) made exact).
+//! Stage 5 — the next time-step size (docs/model.md §4, P04 (6.14) made exact).
 //!
 //! Runs after impacts, merging and fragmentation so that t_c is computed from the
 //! post-impact velocities and the current bodies: that is what makes "no collision
-//! missed for c ≤ 1" hold. (MODEL.md §3 lists the step size under contact detection;
+//! missed for c ≤ 1" hold. (docs/model.md §3 lists the step size under contact detection;
 //! computing it there would use pre-impact velocities.) When nothing changed this
 //! step, contact detection's neighbour table is reused; after bounces only, its
 //! positions and velocities are refreshed; after merging or fragmentation it is rebuilt.

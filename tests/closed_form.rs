@@ -1,4 +1,4 @@
-//! Physics against closed forms (MODEL.md §14), on real runs of the engine.
+//! Physics against closed forms (docs/model.md §14), on real runs of the engine.
 
 mod common;
 

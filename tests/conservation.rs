@@ -1,4 +1,4 @@
-//! Conservation laws (MODEL.md §10, §14) on real multi-particle runs.
+//! Conservation laws (docs/model.md §10, §14) on real multi-particle runs.
 
 mod common;
 

@@ -1,4 +1,4 @@
-//! The inverse problem (MODEL.md §12): the GA on a synthetic cost, the ensemble
+//! The inverse problem (docs/model.md §12): the GA on a synthetic cost, the ensemble
 //! stopping rule, determinism across thread counts, checkpoint/resume, a short real
 //! run re-checked through `agglo run`, and rejection of bad inverse files.
 
@@ -67,7 +67,7 @@ fn ga_finds_known_minimum_with_monotone_best_and_paper_evaluation_count() {
     for w in state.history.windows(2) {
         assert!(w[1].best_cost <= w[0].best_cost, "best cost rose: {w:?}");
     }
-    // MODEL §12: S + (G − 1)(S − K) evaluations, parents never re-evaluated.
+    // docs/model.md §12: S + (G − 1)(S − K) evaluations, parents never re-evaluated.
     let expected = 20 + 39 * (20 - 6);
     assert_eq!(state.total_evaluations, expected);
     assert_eq!(calls.load(Ordering::Relaxed), expected);
@@ -383,7 +383,7 @@ fn shipped_inverse_files_load_and_p02_end_time_matches_the_paper() {
         InverseProblem::load(&scenarios_dir().join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     }
     let p = InverseProblem::load(&scenarios_dir().join("paper2002_inverse.json")).unwrap();
-    // P02 Table 1 rank 1 → T = 2.697e-4 s (MODEL §13; 4 significant figures).
+    // P02 Table 1 rank 1 → T = 2.697e-4 s (docs/model.md §13; 4 significant figures).
     let rank1 = [
         4.326,
         0.633,

@@ -1,4 +1,4 @@
-//! Contact detection and the step size (MODEL.md §4): no missed collision for c ≤ 1,
+//! Contact detection and the step size (docs/model.md §4): no missed collision for c ≤ 1,
 //! tunnelling with coarse fixed steps, and bodies larger than half the box.
 
 mod common;

@@ -1,5 +1,5 @@
 //! `agglo study`: the accuracy ladder end to end on a small scene, and the stability
-//! maps against what MODEL.md §5, §8 and §14 predict.
+//! maps against what docs/model.md §5, §8 and §14 predict.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -148,7 +148,7 @@ fn plain_iteration_fails_exactly_where_model_14_predicts() {
         if (c.speed_ratio - 1.0).abs() < 1e-9 {
             continue;
         }
-        // MODEL §14: at a0 = 0, G(e) = 1 − λ/(1 − e) maps 0 → 1 − λ → 0: every
+        // docs/model.md §14: at a0 = 0, G(e) = 1 − λ/(1 − e) maps 0 → 1 − λ → 0: every
         // sub-critical speed (λ < 1) 2-cycles. For a0 > 0, |G'(e*)| =
         // (1 − e*)(1 − a0)/(1 − (1 − a0) e*) < 1, so it converges (in ≲ 28/a0 iterations
         // near the critical speed, far below the budget); above critical G(0) = 0 at once.

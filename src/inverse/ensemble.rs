@@ -1,4 +1,4 @@
-//! Ensemble cost of one parameter set (MODEL.md §12, P04 (8.1), P02 (25), (27)).
+//! Ensemble cost of one parameter set (docs/model.md §12, P04 (8.1), P02 (25), (27)).
 //!
 //! Samples i = 1, 2, … run with independent clouds whose seeds derive from
 //! (run seed, generation, string, sample) by splitmix64, so any sample can be

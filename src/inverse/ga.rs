@@ -1,4 +1,4 @@
-//! The genetic algorithm of MODEL.md §12 (P04 steps 1–6, P02 (22)).
+//! The genetic algorithm of docs/model.md §12 (P04 steps 1–6, P02 (22)).
 //!
 //! Generation 0 draws S strings uniformly in the bounds. Every later generation
 //! keeps the K best strings of the previous one (costs not re-evaluated), mates

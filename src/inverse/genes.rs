@@ -1,4 +1,4 @@
-//! Genes: numeric scenario fields addressed by dotted path (MODEL.md §12).
+//! Genes: numeric scenario fields addressed by dotted path (docs/model.md §12).
 //!
 //! A path walks the JSON value of a fully serialised scenario: object keys by
 //! name, array elements by index (`cloud.v_rel.0`). Setting a gene writes a

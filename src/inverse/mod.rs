@@ -1,4 +1,4 @@
-//! The inverse problem (MODEL.md §11–§13): find the scenario parameters that
+//! The inverse problem (docs/model.md §11–§13): find the scenario parameters that
 //! minimise an ensemble-averaged agglomeration cost with the genetic algorithm of
 //! P04 §7 / P02 §6.
 //!

@@ -1,5 +1,5 @@
 //! Inverse-problem files: the base scenario, the genes and their ranges, the cost,
-//! the ensemble rule and the genetic-algorithm settings (MODEL.md §12), with
+//! the ensemble rule and the genetic-algorithm settings (docs/model.md §12), with
 //! validation that names the field path of every problem, like scenario files.
 //!
 //! ```json
@@ -93,7 +93,7 @@ pub enum EndTimeRule {
     #[default]
     Scenario,
     /// P02 (13): T = (S_gap / v_crit) · ln(0.01)/ln(0.9), S_gap = (V/N)^(1/3) − 2 b0,
-    /// v_crit = √(6 af H0 β / ρ) (MODEL.md §13), with `steps` fixed steps of T / steps.
+    /// v_crit = √(6 af H0 β / ρ) (docs/model.md §13), with `steps` fixed steps of T / steps.
     P02 { steps: u64 },
 }
 
@@ -109,7 +109,7 @@ pub enum CostSpec {
     Moment { moment: Moment, target: f64 },
 }
 
-/// Radius-distribution moments (MODEL.md §11); lengths in units of b0.
+/// Radius-distribution moments (docs/model.md §11); lengths in units of b0.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Moment {
@@ -154,7 +154,7 @@ fn default_track() -> Vec<Tracked> {
     vec![Tracked::Cost]
 }
 
-/// Genetic-algorithm settings (MODEL.md §12).
+/// Genetic-algorithm settings (docs/model.md §12).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GaSpec {
@@ -522,7 +522,7 @@ fn set_gene(value: &mut Value, path: &str, x: f64) -> Result<(), ScenarioError> 
     })
 }
 
-/// P02 (13) end time for a scenario (MODEL.md §13): T = (S_gap / v_crit) · ln(0.01)/ln(0.9).
+/// P02 (13) end time for a scenario (docs/model.md §13): T = (S_gap / v_crit) · ln(0.01)/ln(0.9).
 pub fn p02_end_time(s: &Scenario) -> f64 {
     let side = 2.0 * s.domain.half_width;
     let spacing = (side.powi(3) / s.cloud.count as f64).cbrt();

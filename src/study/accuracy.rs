@@ -3,7 +3,7 @@
 //! One scene, one seed, run under a ladder of numerical settings; each run is timed
 //! (median wall time of a few repeats; the runs are deterministic, so only the time
 //! varies) and compared with a resolved **reference**: adaptive steps with step
-//! factor c = 1 (no contact missed, MODEL.md §4), Δt_min = 1e-12 s so that no step
+//! factor c = 1 (no contact missed, docs/model.md §4), Δt_min = 1e-12 s so that no step
 //! is clamped by the papers' lower bound, and a tight fixed-point tolerance.
 //!
 //! Families (see [`Family`]): the adaptive step factor c, a geometric fixed-Δt ladder
@@ -32,7 +32,7 @@ pub const REFERENCE_TOL: f64 = 1e-14;
 /// Δt_min of the reference run [s]: far below any step the scene needs, so never binding
 /// except to process a deferred contact (t_c = 0).
 pub const REFERENCE_DT_MIN: f64 = 1e-12;
-/// P04's fixed-point tolerance (MODEL.md §13).
+/// P04's fixed-point tolerance (docs/model.md §13).
 pub const P04_TOL: f64 = 5e-4;
 /// Most steps a fixed-Δt rung may take (keeps the fine end of the ladder affordable).
 pub const MAX_FIXED_STEPS: f64 = 400_000.0;
@@ -358,7 +358,7 @@ pub fn ladder(base: &Scenario, reference_steps: u64, options: &AccuracyOptions) 
         );
     }
     // With a0 = 0 the plain iteration 2-cycles 0 ↔ 1 − λ below the critical speed
-    // (MODEL.md §5): the last iterate, hence bond or bounce, is set by the parity of
+    // (docs/model.md §5): the last iterate, hence bond or bounce, is set by the parity of
     // the iteration cap. An odd cap shows the other branch.
     let mut odd = plain(reference.clone());
     odd.impact.max_iterations = 101;

@@ -844,7 +844,7 @@ pub fn stability_charts(dir: &Path, study: &StabilityStudy) -> anyhow::Result<()
         (1500, 600),
         &PairMap {
             cells: &study.pair_cold,
-            title: "Pair solve, two identical spheres head on, no softening (MODEL §14)",
+            title: "Pair solve, two identical spheres head on, no softening (docs/model.md §14)",
         },
     )?;
     save_png_and_svg(

@@ -1,4 +1,4 @@
-//! `agglo study`: what each numerical choice costs and what it buys (MODEL.md §4, §5,
+//! `agglo study`: what each numerical choice costs and what it buys (docs/model.md §4, §5,
 //! §8, §14).
 //!
 //! - [`accuracy`]: one scene, one seed, a ladder of numerical settings (adaptive step

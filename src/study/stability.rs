@@ -1,6 +1,6 @@
 //! Where methods fail (`agglo study stability`).
 //!
-//! 1. **Pair solve** (MODEL.md §5, §14): two identical spheres head on, over impact
+//! 1. **Pair solve** (docs/model.md §5, §14): two identical spheres head on, over impact
 //!    speed (0.05–3 × the critical speed) × a0 ∈ [0, 0.9]. The papers' plain
 //!    iteration e_{K+1} = G(e_K) from e_0 = 0 is run with a generous iteration budget
 //!    ([`PLAIN_BUDGET`]) to see where it converges and how slowly; the safeguarded
@@ -140,7 +140,7 @@ pub struct PairCell {
     pub safeguarded: FixedPoint,
     /// |e − G(e)| at the safeguarded solution.
     pub safeguarded_residual: f64,
-    /// The closed-form e* of MODEL.md §14 (no softening only).
+    /// The closed-form e* of docs/model.md §14 (no softening only).
     pub closed_form: Option<f64>,
 }
 

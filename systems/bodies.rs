@@ -1,0 +1,255 @@
+//! Bodies at the current time: the one way to read or write a body (docs/model.md §4).
+//!
+//! The event core keeps each body's state at its own reference time t_ref
+//! ([`LocalTime`]): position, temperature and hardness are brought up to the current
+//! time only when something reads them. [`bring_to`] does that in place (drift with
+//! periodic wrap, then cooling over the whole interval with the accurate integrator of
+//! docs/model.md §8); [`state_at`] computes the same without writing (snapshots).
+//!
+//! Extensions read and write bodies through the [`Bodies`] system parameter: every
+//! body it hands out is at the current time, and every body it changes is reported to
+//! the event core, which re-predicts its events. New physics therefore never sees
+//! stale state and never leaves stale predictions behind. With the stepped core every
+//! body is already current and the parameter only records what changed.
+
+use bevy_ecs::prelude::*;
+use bevy_ecs::system::SystemParam;
+use glam::DVec3;
+
+use crate::components::{
+    BodyState, Hardness, LocalTime, Mass, Particle, ParticleId, Position, Primaries, Radius,
+    Temperature, Velocity,
+};
+use crate::resources::{
+    BoxGeometry, EnergyLedger, LazyState, MaterialConstants, PhysicsOptions, SimClock, StepEvents,
+};
+use crate::scenario::CoolingMethod;
+use crate::systems::cooling::CoolingLaw;
+use crate::systems::diagnostics::Totals;
+
+/// What bringing a body forward needs: the box, the material and whether it cools.
+#[derive(Debug, Clone, Copy)]
+pub struct Clockwork {
+    pub geometry: BoxGeometry,
+    pub material: MaterialConstants,
+    /// True when the scene cools (ε > 0 or hc > 0, cooling not off).
+    pub cools: bool,
+}
+
+impl Clockwork {
+    pub fn new(
+        geometry: &BoxGeometry,
+        material: &MaterialConstants,
+        options: &PhysicsOptions,
+    ) -> Self {
+        Self {
+            geometry: *geometry,
+            material: *material,
+            cools: material.cools() && options.cooling != CoolingMethod::Off,
+        }
+    }
+
+    /// Temperature after `dt` [s] of cooling from θ [K] (exact to ~1e-12).
+    pub fn cooled(&self, theta: f64, mass: f64, radius: f64, dt: f64) -> f64 {
+        if !self.cools || dt <= 0.0 {
+            return theta;
+        }
+        CoolingLaw::for_body(&self.material, mass, radius).advance(theta, dt)
+    }
+}
+
+/// Bring one body from its reference time to `now` in place; returns the heat it lost
+/// by cooling [J] (for the energy ledger).
+#[allow(clippy::too_many_arguments)]
+pub fn bring_to(
+    now: f64,
+    clockwork: &Clockwork,
+    position: &mut DVec3,
+    velocity: DVec3,
+    mass: f64,
+    radius: f64,
+    temperature: &mut f64,
+    hardness: &mut f64,
+    t_ref: &mut f64,
+) -> f64 {
+    let dt = now - *t_ref;
+    if dt <= 0.0 {
+        return 0.0;
+    }
+    *position = clockwork.geometry.wrap(*position + velocity * dt);
+    let before = *temperature;
+    let after = clockwork.cooled(before, mass, radius, dt);
+    if after != before {
+        *temperature = after;
+        *hardness = clockwork.material.hardness(after);
+    }
+    *t_ref = now;
+    mass * clockwork.material.heat_capacity * (before - after)
+}
+
+/// A body's state at `now` without changing it (for snapshots and summaries).
+pub fn state_at(body: &BodyState, t_ref: f64, now: f64, clockwork: &Clockwork) -> BodyState {
+    let mut b = *body;
+    let (mut p, mut t, mut h, mut r) = (b.position, b.temperature, b.hardness, t_ref);
+    bring_to(
+        now, clockwork, &mut p, b.velocity, b.mass, b.radius, &mut t, &mut h, &mut r,
+    );
+    b.position = p;
+    b.temperature = t;
+    b.hardness = h;
+    b
+}
+
+/// One body's contribution to the conserved totals.
+pub fn contribution(mass: f64, velocity: DVec3, temperature: f64, heat_capacity: f64) -> Totals {
+    Totals {
+        mass,
+        momentum: mass * velocity,
+        momentum_scale: mass * velocity.length(),
+        kinetic: 0.5 * mass * velocity.length_squared(),
+        thermal: mass * heat_capacity * temperature,
+    }
+}
+
+type BodyData = (
+    Entity,
+    &'static ParticleId,
+    &'static mut Position,
+    &'static mut Velocity,
+    &'static Mass,
+    &'static Radius,
+    &'static mut Temperature,
+    &'static mut Hardness,
+    &'static Primaries,
+    &'static mut LocalTime,
+);
+
+/// Bodies at the current time, for systems that add physics (forces, heating, …).
+///
+/// ```ignore
+/// fn gas_drag(drag: Res<Drag>, mut bodies: Bodies) {
+///     let decay = (-bodies.dt() / drag.tau).exp();
+///     bodies.update_all(|b| b.velocity = drag.gas + (b.velocity - drag.gas) * decay);
+/// }
+/// ```
+/// Position, velocity and temperature written in the closure are kept (hardness follows
+/// the temperature); mass, radius, primaries and id are read-only here — bodies change
+/// size only by merging and fragmentation.
+#[derive(SystemParam)]
+pub struct Bodies<'w, 's> {
+    query: Query<'w, 's, BodyData, With<Particle>>,
+    clock: Res<'w, SimClock>,
+    geometry: Res<'w, BoxGeometry>,
+    material: Res<'w, MaterialConstants>,
+    options: Res<'w, PhysicsOptions>,
+    lazy: Res<'w, LazyState>,
+    ledger: ResMut<'w, EnergyLedger>,
+    events: ResMut<'w, StepEvents>,
+}
+
+impl Bodies<'_, '_> {
+    /// The current time t [s].
+    pub fn now(&self) -> f64 {
+        self.clock.time
+    }
+
+    /// Length of the step being taken, Δt [s].
+    pub fn dt(&self) -> f64 {
+        self.clock.dt
+    }
+
+    /// Number of bodies.
+    pub fn len(&self) -> usize {
+        self.query.iter().len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// A body's state at the current time (read only: nothing is written).
+    pub fn get(&self, entity: Entity) -> Option<BodyState> {
+        let (_, id, p, v, m, b, t, h, n, lt) = self.query.get(entity).ok()?;
+        let state = BodyState {
+            id: id.0,
+            position: p.0,
+            velocity: v.0,
+            mass: m.0,
+            radius: b.0,
+            temperature: t.0,
+            hardness: h.0,
+            primaries: n.0,
+        };
+        if !self.lazy.0 {
+            return Some(state);
+        }
+        let clockwork = Clockwork::new(&self.geometry, &self.material, &self.options);
+        Some(state_at(&state, lt.0, self.clock.time, &clockwork))
+    }
+
+    /// Change one body: it is brought to the current time, `change` edits it, and the
+    /// event core re-predicts it. False if the entity is not a body.
+    pub fn update(&mut self, entity: Entity, change: impl FnOnce(&mut BodyState)) -> bool {
+        let now = self.clock.time;
+        let lazy = self.lazy.0;
+        let clockwork = Clockwork::new(&self.geometry, &self.material, &self.options);
+        let Ok(row) = self.query.get_mut(entity) else {
+            return false;
+        };
+        let lost = apply(row, now, lazy, &clockwork, &mut self.events, change);
+        self.ledger.cooling_loss += lost;
+        true
+    }
+
+    /// Change every body (in no particular order; `change` must not depend on it).
+    pub fn update_all(&mut self, mut change: impl FnMut(&mut BodyState)) {
+        let now = self.clock.time;
+        let lazy = self.lazy.0;
+        let clockwork = Clockwork::new(&self.geometry, &self.material, &self.options);
+        let mut lost = 0.0;
+        for row in self.query.iter_mut() {
+            lost += apply(row, now, lazy, &clockwork, &mut self.events, &mut change);
+        }
+        self.ledger.cooling_loss += lost;
+    }
+}
+
+/// Bring a body to `now` (lazy core), record its state before the change, apply it.
+fn apply(
+    row: <BodyData as bevy_ecs::query::QueryData>::Item<'_, '_>,
+    now: f64,
+    lazy: bool,
+    clockwork: &Clockwork,
+    events: &mut StepEvents,
+    change: impl FnOnce(&mut BodyState),
+) -> f64 {
+    let (entity, id, mut p, mut v, m, b, mut t, mut h, n, mut lt) = row;
+    // The contribution before the body is brought forward: the heat it loses on the
+    // way is tallied in the ledger and shows in its state after.
+    let c = clockwork.material.heat_capacity;
+    events.touch(entity, contribution(m.0, v.0, t.0, c));
+    let mut lost = 0.0;
+    if lazy {
+        lost = bring_to(
+            now, clockwork, &mut p.0, v.0, m.0, b.0, &mut t.0, &mut h.0, &mut lt.0,
+        );
+    }
+    let mut state = BodyState {
+        id: id.0,
+        position: p.0,
+        velocity: v.0,
+        mass: m.0,
+        radius: b.0,
+        temperature: t.0,
+        hardness: h.0,
+        primaries: n.0,
+    };
+    change(&mut state);
+    p.0 = clockwork.geometry.wrap(state.position);
+    v.0 = state.velocity;
+    if state.temperature != t.0 {
+        t.0 = state.temperature;
+        h.0 = clockwork.material.hardness(t.0);
+    }
+    lost
+}

@@ -1,0 +1,378 @@
+//! The event core's bookkeeping: body slots with their ballistic trajectories, the
+//! cell grid and the calendar, and the prediction of each body's next event
+//! (docs/model.md §4). Pure data: no ECS queries, so it can be tested and
+//! benchmarked alone; `super` connects it to the world.
+//!
+//! A slot holds a copy of a body's trajectory — position (wrapped into the box) and
+//! velocity at its reference time t_ref, and its radius — refreshed whenever the body
+//! is touched. Between touches a body moves ballistically, so any future position is
+//! r(t) = r_ref + v (t − t_ref), and predictions need no other state.
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+
+use super::calendar::{Calendar, Event, EventKind};
+use super::cells::{CellGrid, Partner};
+use crate::systems::time_step::time_to_contact;
+
+const NONE: u32 = u32::MAX;
+
+/// A pair found overlapping deeper than this fraction of b_i + b_j while approaching,
+/// although it did not overlap when the later of the two was last changed, is a
+/// contact the core missed.
+const DEEP_OVERLAP: f64 = 1e-6;
+
+/// True when a pair at separation `d` (now) with relative velocity `u` approaches while
+/// overlapping deeply, but did not overlap `since` seconds ago: a missed contact.
+/// (Overlaps made by merging or fragmentation existed when the body was changed.)
+#[inline]
+fn newly_overlapping(d: DVec3, u: DVec3, reach: f64, since: f64) -> bool {
+    d.dot(u) < 0.0
+        && d.length() < reach * (1.0 - DEEP_OVERLAP)
+        && (d - u * since).length() >= reach * (1.0 - DEEP_OVERLAP)
+}
+
+/// One body's trajectory as the event core sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct Trajectory {
+    pub entity: Entity,
+    pub id: u64,
+    /// Position at `t_ref`, wrapped into [−D, D) [m].
+    pub position: DVec3,
+    /// Velocity [m/s].
+    pub velocity: DVec3,
+    /// Reference time t_ref [s].
+    pub t_ref: f64,
+    /// Radius [m].
+    pub radius: f64,
+}
+
+impl Trajectory {
+    /// Unwrapped position at time t [m].
+    #[inline]
+    pub fn at(&self, t: f64) -> DVec3 {
+        self.position + self.velocity * (t - self.t_ref)
+    }
+}
+
+/// Event counts of the core (cheap, always on).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EventStats {
+    /// Cell crossings processed.
+    pub crossings: u64,
+    /// Popped events found stale (a partner changed since the prediction).
+    pub stale: u64,
+    /// Body predictions made.
+    pub predictions: u64,
+    /// Pair contact times evaluated.
+    pub pair_tests: u64,
+    /// Approaching pairs found overlapping beyond rounding (missed contacts).
+    pub deep_overlaps: u64,
+}
+
+/// The event core.
+#[derive(Resource, Debug, Clone)]
+pub struct EventCore {
+    half_width: f64,
+    slots: Vec<Trajectory>,
+    counters: Vec<u32>,
+    alive: Vec<bool>,
+    free: Vec<u32>,
+    slot_of_id: Vec<u32>,
+    grid: CellGrid,
+    calendar: Calendar,
+    /// Predict against every body through every image (the O(N²) reference).
+    brute_force: bool,
+    pub stats: EventStats,
+}
+
+impl EventCore {
+    /// An empty core for the periodic cube of half-width `half_width` [m].
+    pub fn new(half_width: f64, min_radius: f64, bodies: usize, brute_force: bool) -> Self {
+        Self {
+            half_width,
+            slots: Vec::with_capacity(bodies),
+            counters: Vec::with_capacity(bodies),
+            alive: Vec::with_capacity(bodies),
+            free: Vec::new(),
+            slot_of_id: Vec::with_capacity(bodies),
+            grid: CellGrid::new(half_width, min_radius, bodies),
+            calendar: Calendar::default(),
+            brute_force,
+            stats: EventStats::default(),
+        }
+    }
+
+    /// Cells per side of the grid's levels.
+    pub fn cells_per_side(&self) -> Vec<u32> {
+        self.grid.cells_per_side()
+    }
+
+    /// Bytes held by the core (slots, grid, calendar).
+    pub fn bytes(&self) -> usize {
+        self.slots.capacity() * std::mem::size_of::<Trajectory>()
+            + self.counters.capacity() * 4
+            + self.alive.capacity()
+            + self.free.capacity() * 4
+            + self.slot_of_id.capacity() * 4
+            + self.grid.bytes()
+            + self.calendar.bytes()
+    }
+
+    fn side(&self) -> f64 {
+        2.0 * self.half_width
+    }
+
+    fn wrap(&self, r: DVec3) -> DVec3 {
+        let side = self.side();
+        let mut w = r - side * ((r + DVec3::splat(self.half_width)) / side).floor();
+        for k in 0..3 {
+            if w[k] >= self.half_width {
+                w[k] -= side;
+            }
+            if w[k] < -self.half_width {
+                w[k] = -self.half_width;
+            }
+        }
+        w
+    }
+
+    fn min_image(&self, d: DVec3) -> DVec3 {
+        let side = self.side();
+        d - side * (d / side).round()
+    }
+
+    /// The slot of a stable id, if present.
+    pub fn slot_of(&self, id: u64) -> Option<u32> {
+        match self.slot_of_id.get(id as usize) {
+            Some(&s) if s != NONE => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The trajectory in a slot.
+    pub fn trajectory(&self, slot: u32) -> &Trajectory {
+        &self.slots[slot as usize]
+    }
+
+    /// Add a body; returns its slot.
+    pub fn insert(&mut self, trajectory: Trajectory) -> u32 {
+        let mut t = trajectory;
+        t.position = self.wrap(t.position);
+        let slot = match self.free.pop() {
+            Some(s) => {
+                self.slots[s as usize] = t;
+                self.alive[s as usize] = true;
+                self.counters[s as usize] = self.counters[s as usize].wrapping_add(1);
+                s
+            }
+            None => {
+                self.slots.push(t);
+                self.alive.push(true);
+                self.counters.push(0);
+                (self.slots.len() - 1) as u32
+            }
+        };
+        let id = t.id as usize;
+        if self.slot_of_id.len() <= id {
+            self.slot_of_id.resize(id + 1, NONE);
+        }
+        self.slot_of_id[id] = slot;
+        self.grid.insert(slot, t.radius, t.position);
+        slot
+    }
+
+    /// Remove the body with stable id `id` (merged away or fragmented).
+    pub fn remove(&mut self, id: u64) {
+        let Some(slot) = self.slot_of(id) else {
+            return;
+        };
+        self.grid.remove(slot);
+        self.calendar.remove(slot);
+        self.alive[slot as usize] = false;
+        // Any prediction naming this slot is now stale.
+        self.counters[slot as usize] = self.counters[slot as usize].wrapping_add(1);
+        self.slot_of_id[id as usize] = NONE;
+        self.free.push(slot);
+    }
+
+    /// A body's trajectory changed (impact, merge, force): store it, re-file it in the
+    /// grid, and invalidate every prediction that named it.
+    pub fn update(&mut self, slot: u32, trajectory: Trajectory) {
+        let mut t = trajectory;
+        t.position = self.wrap(t.position);
+        self.slots[slot as usize] = t;
+        self.counters[slot as usize] = self.counters[slot as usize].wrapping_add(1);
+        // The logical cell must hold the new position (a merged body sits at the centre
+        // of mass, which may be in another cell).
+        self.grid.remove(slot);
+        self.grid.insert(slot, t.radius, t.position);
+    }
+
+    /// Earliest scheduled event, if any.
+    pub fn peek(&self) -> Option<(u32, Event)> {
+        self.calendar.peek()
+    }
+
+    /// Remove the earliest event.
+    pub fn pop(&mut self) -> Option<(u32, Event)> {
+        self.calendar.pop()
+    }
+
+    /// True when a contact predicted with partner counter `counter` still holds.
+    pub fn is_current(&self, partner: u32, counter: u32) -> bool {
+        self.alive[partner as usize] && self.counters[partner as usize] == counter
+    }
+
+    /// Process a cell crossing popped from the calendar.
+    pub fn cross(&mut self, slot: u32, axis: u8, step: i8) {
+        self.grid.cross(slot, axis as usize, step);
+        self.stats.crossings += 1;
+    }
+
+    /// Predict `slot`'s next event from time `now` and file it in the calendar.
+    pub fn schedule(&mut self, slot: u32, now: f64) {
+        let event = self.predict(slot, now);
+        let id = self.slots[slot as usize].id;
+        self.calendar.set(slot, id, event);
+    }
+
+    /// The earliest event of `slot` at or after `now`: a contact with a possible partner
+    /// or, for a gridded body, leaving its cell. Ties go to the smaller partner id.
+    pub fn predict(&mut self, slot: u32, now: f64) -> Option<Event> {
+        self.stats.predictions += 1;
+        let me = self.slots[slot as usize];
+        let x_me = me.at(now);
+        let mut best: Option<(f64, u64, Event)> = None;
+        let mut consider = |t: f64, tie: u64, kind: EventKind| {
+            let event = Event {
+                time: now + t,
+                kind,
+            };
+            if best.is_none_or(|(bt, btie, _)| t < bt || (t == bt && tie < btie)) {
+                best = Some((t, tie, event));
+            }
+        };
+        let mut tests = 0u64;
+        let mut deep = 0u64;
+        {
+            let slots = &self.slots;
+            let alive = &self.alive;
+            let counters = &self.counters;
+            let grid = &self.grid;
+            let mut pair = |j: u32, how: Partner| {
+                let other = &slots[j as usize];
+                let x_other = other.at(now);
+                let u = other.velocity - me.velocity;
+                let reach = me.radius + other.radius;
+                let since = now - me.t_ref.max(other.t_ref);
+                let time = match how {
+                    Partner::Cell { level, offset } => {
+                        let k = level as usize;
+                        let w = grid.width(k);
+                        let rel_me = grid.offset_in_cell(slot, k, x_me);
+                        let rel_other = grid.offset_in_cell(j, k, x_other);
+                        let cells =
+                            DVec3::new(offset[0] as f64, offset[1] as f64, offset[2] as f64);
+                        let d = cells * w + rel_other - rel_me;
+                        tests += 1;
+                        deep += newly_overlapping(d, u, reach, since) as u64;
+                        time_to_contact(d, u, reach)
+                    }
+                    Partner::AnyImage => {
+                        let side = 2.0 * self.half_width;
+                        let d0 = {
+                            let d = x_other - x_me;
+                            d - side * (d / side).round()
+                        };
+                        let mut earliest: Option<f64> = None;
+                        for image in IMAGES {
+                            let d = d0 + side * image;
+                            tests += 1;
+                            if let Some(t) = time_to_contact(d, u, reach) {
+                                deep += newly_overlapping(d, u, reach, since) as u64;
+                                earliest = Some(earliest.map_or(t, |e: f64| e.min(t)));
+                            }
+                        }
+                        earliest
+                    }
+                };
+                if let Some(t) = time {
+                    consider(
+                        t,
+                        other.id,
+                        EventKind::Contact {
+                            slot: j,
+                            counter: counters[j as usize],
+                        },
+                    );
+                }
+            };
+            if self.brute_force {
+                for j in 0..slots.len() as u32 {
+                    if j != slot && alive[j as usize] {
+                        pair(j, Partner::AnyImage);
+                    }
+                }
+            } else {
+                let every = (0..slots.len() as u32).filter(|&j| alive[j as usize]);
+                grid.for_each_candidate(slot, every, &mut pair);
+            }
+        }
+        self.stats.pair_tests += tests;
+        self.stats.deep_overlaps += deep;
+        if !self.brute_force
+            && let Some((t, axis, step)) = self.grid.crossing(slot, x_me, me.velocity)
+        {
+            // A contact at the same time wins the tie (u64::MAX): it is the physical event.
+            consider(t, u64::MAX, EventKind::Crossing { axis, step });
+        }
+        best.map(|(_, _, e)| e)
+    }
+
+    /// The periodic image of `b`'s centre, relative to `a`'s, that is closest to touching
+    /// at positions `ra`, `rb`: r_b − r_a for that image [m].
+    pub fn contact_separation(&self, ra: DVec3, rb: DVec3, reach: f64) -> DVec3 {
+        let d0 = self.min_image(rb - ra);
+        if reach <= 0.5 * self.half_width {
+            return d0;
+        }
+        let side = self.side();
+        let mut best = d0;
+        let mut best_gap = (d0.length() - reach).abs();
+        for image in IMAGES {
+            let d = d0 + side * image;
+            let gap = (d.length() - reach).abs();
+            if gap < best_gap {
+                best = d;
+                best_gap = gap;
+            }
+        }
+        best
+    }
+
+    /// True when the slot holds a body.
+    pub fn slot_alive(&self, slot: u32) -> bool {
+        self.alive.get(slot as usize).copied().unwrap_or(false)
+    }
+
+    /// Every live slot.
+    pub fn live_slots(&self) -> impl Iterator<Item = u32> + '_ {
+        (0..self.slots.len() as u32).filter(|&s| self.alive[s as usize])
+    }
+}
+
+/// The 27 lattice translations (in box sides) of a partner's nearest periodic images.
+const IMAGES: [DVec3; 27] = {
+    let mut images = [DVec3::ZERO; 27];
+    let mut k = 0;
+    while k < 27 {
+        images[k] = DVec3::new(
+            (k % 3) as f64 - 1.0,
+            ((k / 3) % 3) as f64 - 1.0,
+            (k / 9) as f64 - 1.0,
+        );
+        k += 1;
+    }
+    images
+};

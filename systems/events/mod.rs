@@ -1,0 +1,362 @@
+//! The event-driven core (docs/model.md §4): a step lands on the next contact and
+//! costs O(k log N) for the k bodies it touches.
+//!
+//! Two systems replace the stepped core's contact detection and step-size choice:
+//! - [`pop_due_contacts`] (stage `Contact`) pops every event due now from the
+//!   calendar — cell crossings and stale predictions are handled on the way — and
+//!   turns the due contacts into this step's [`ContactList`]: sorted by ids, at most
+//!   one impact per body; the bodies met are brought to the current time;
+//! - [`schedule_next_step`] (stage `TimeStep`) files what the step changed (touched,
+//!   spawned, despawned bodies, from [`StepEvents`]), re-predicts those bodies only,
+//!   advances the calendar past crossings and stale events to the next real contact,
+//!   and sets Δt to reach it (bounded by Δt_max and T).
+//! With force systems in the scene, [`close_step`] (stage `Boundary`) re-predicts the
+//! bodies they changed, and a step ends at every event so that no body's cell runs
+//! ahead of the time at which forces act.
+//!
+//! Drift, periodic wrapping and cooling need no system: they happen when a body is
+//! brought to the current time (`systems/bodies.rs`).
+
+pub mod calendar;
+pub mod cells;
+pub mod core;
+
+use bevy_ecs::prelude::*;
+
+use self::calendar::EventKind;
+use self::core::{EventCore, Trajectory};
+use super::bodies::{Clockwork, bring_to, contribution};
+use crate::components::{
+    Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
+};
+use crate::resources::{
+    BoxGeometry, Contact, ContactList, Counters, EnergyLedger, MaterialConstants, PhysicsOptions,
+    SimClock, StepControl, StepEvents,
+};
+
+/// Events closer than this (relative to t) count as simultaneous.
+const SIMULTANEOUS: f64 = 1e-13;
+
+/// Whether steps end at every event (forces present) or at contacts only.
+#[derive(Resource, Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ForcesPresent(pub bool);
+
+type LazyQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static ParticleId,
+        &'static mut Position,
+        &'static Velocity,
+        &'static Mass,
+        &'static Radius,
+        &'static mut Temperature,
+        &'static mut Hardness,
+        &'static mut LocalTime,
+    ),
+    With<Particle>,
+>;
+
+type ReadQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static ParticleId,
+        &'static Position,
+        &'static Velocity,
+        &'static Radius,
+        &'static LocalTime,
+    ),
+    With<Particle>,
+>;
+
+fn horizon(now: f64) -> f64 {
+    now + SIMULTANEOUS * now.abs().max(f64::MIN_POSITIVE)
+}
+
+/// Build the core from the bodies in the world (at t = 0) and predict every body.
+pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
+    let half_width = world.resource::<BoxGeometry>().half_width;
+    let primary = world.resource::<MaterialConstants>().primary_radius;
+    let mut rows: Vec<Trajectory> = world
+        .query_filtered::<(
+            Entity,
+            &ParticleId,
+            &Position,
+            &Velocity,
+            &Radius,
+            &LocalTime,
+        ), With<Particle>>()
+        .iter(world)
+        .map(|(e, id, p, v, r, t)| Trajectory {
+            entity: e,
+            id: id.0,
+            position: p.0,
+            velocity: v.0,
+            t_ref: t.0,
+            radius: r.0,
+        })
+        .collect();
+    rows.sort_by_key(|t| t.id);
+    let min_radius = rows.iter().map(|t| t.radius).fold(primary, f64::min);
+    let mut core = EventCore::new(half_width, min_radius, rows.len(), brute_force);
+    let slots: Vec<u32> = rows.into_iter().map(|t| core.insert(t)).collect();
+    for slot in slots {
+        core.schedule(slot, 0.0);
+    }
+    core
+}
+
+/// Stage `Contact`: this step's contacts from the calendar.
+#[allow(clippy::too_many_arguments)]
+pub fn pop_due_contacts(
+    mut core: ResMut<EventCore>,
+    clock: Res<SimClock>,
+    geometry: Res<BoxGeometry>,
+    material: Res<MaterialConstants>,
+    options: Res<PhysicsOptions>,
+    mut bodies: LazyQuery,
+    mut contacts: ResMut<ContactList>,
+    mut events: ResMut<StepEvents>,
+    mut counters: ResMut<Counters>,
+    mut ledger: ResMut<EnergyLedger>,
+    mut candidates: Local<Vec<(u64, u64, u32, u32)>>,
+    mut taken: Local<Vec<u32>>,
+) {
+    contacts.contacts.clear();
+    candidates.clear();
+    let now = clock.time;
+    let due = horizon(now);
+    while let Some((slot, event)) = core.peek() {
+        if event.time > due {
+            break;
+        }
+        core.pop();
+        match event.kind {
+            EventKind::Crossing { axis, step } => {
+                core.cross(slot, axis, step);
+                core.schedule(slot, event.time.max(now));
+            }
+            EventKind::Contact {
+                slot: partner,
+                counter,
+            } => {
+                if !core.is_current(partner, counter) {
+                    core.stats.stale += 1;
+                    core.schedule(slot, event.time.max(now));
+                    continue;
+                }
+                let (a, b) = (core.trajectory(slot).id, core.trajectory(partner).id);
+                let (sa, sb) = if a < b {
+                    (slot, partner)
+                } else {
+                    (partner, slot)
+                };
+                candidates.push((a.min(b), a.max(b), sa, sb));
+                // This slot's event is used up: predict it again after the step.
+                events.repredict.push(slot);
+            }
+        }
+    }
+    if candidates.is_empty() {
+        return;
+    }
+    // Ordered by ids; a pair predicted from both sides is one candidate.
+    candidates.sort_unstable();
+    candidates.dedup_by_key(|c| (c.0, c.1));
+    let clockwork = Clockwork::new(&geometry, &material, &options);
+    let heat_capacity = material.heat_capacity;
+    taken.clear();
+    for &(_, _, sa, sb) in candidates.iter() {
+        if taken.contains(&sa) || taken.contains(&sb) {
+            counters.deferred_contacts += 1;
+            continue;
+        }
+        let (ea, eb) = (core.trajectory(sa).entity, core.trajectory(sb).entity);
+        let Ok([mut a, mut b]) = bodies.get_many_mut([ea, eb]) else {
+            continue;
+        };
+        // Each body's contribution to the totals before it is brought forward: the heat
+        // it loses on the way is tallied in the ledger and shows in its state after.
+        let before_a = contribution(a.3.0, a.2.0, a.5.0, heat_capacity);
+        let before_b = contribution(b.3.0, b.2.0, b.5.0, heat_capacity);
+        for body in [&mut a, &mut b] {
+            let (_, p, v, m, r, t, h, lt) = body;
+            ledger.cooling_loss += bring_to(
+                now, &clockwork, &mut p.0, v.0, m.0, r.0, &mut t.0, &mut h.0, &mut lt.0,
+            );
+        }
+        let reach = a.4.0 + b.4.0;
+        let separation = core.contact_separation(a.1.0, b.1.0, reach);
+        let distance = separation.length();
+        let normal = separation / distance;
+        // Approaching along the line of centres (rounding may say otherwise for a
+        // grazing pair: then there is nothing to resolve).
+        if distance == 0.0 || (a.2.0 - b.2.0).dot(normal) <= 0.0 {
+            continue;
+        }
+        taken.push(sa);
+        taken.push(sb);
+        events.touch(ea, before_a);
+        events.touch(eb, before_b);
+        contacts.contacts.push(Contact {
+            a: ea,
+            b: eb,
+            id_a: a.0.0,
+            id_b: b.0.0,
+            normal,
+            separation,
+            gap: distance - reach,
+        });
+    }
+}
+
+/// File the step's changes in the core and re-predict the bodies they touched.
+fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuery, now: f64) {
+    let start = events.filed;
+    let mut affected: Vec<u32> = Vec::new();
+    for k in events.filed_despawned..events.despawned.len() {
+        core.remove(events.despawned[k]);
+    }
+    events.filed_despawned = events.despawned.len();
+    for k in events.filed_spawned..events.spawned.len() {
+        let entity = events.spawned[k];
+        if let Ok((id, p, v, r, lt)) = bodies.get(entity) {
+            let slot = core.insert(Trajectory {
+                entity,
+                id: id.0,
+                position: p.0,
+                velocity: v.0,
+                t_ref: lt.0,
+                radius: r.0,
+            });
+            affected.push(slot);
+        }
+    }
+    events.filed_spawned = events.spawned.len();
+    // Update every touched body before predicting any, so that predictions name the
+    // partners' new counters.
+    for k in start..events.touched.len() {
+        let entity = events.touched[k].0;
+        let Ok((id, p, v, r, lt)) = bodies.get(entity) else {
+            continue; // merged away or fragmented: already removed
+        };
+        let Some(slot) = core.slot_of(id.0) else {
+            continue;
+        };
+        let t = core.trajectory(slot);
+        let unchanged =
+            t.velocity == v.0 && t.radius == r.0 && t.position == p.0 && t.t_ref == lt.0;
+        if !unchanged {
+            core.update(
+                slot,
+                Trajectory {
+                    entity,
+                    id: id.0,
+                    position: p.0,
+                    velocity: v.0,
+                    t_ref: lt.0,
+                    radius: r.0,
+                },
+            );
+        }
+        affected.push(slot);
+    }
+    events.filed = events.touched.len();
+    affected.append(&mut events.repredict);
+    affected.sort_unstable();
+    affected.dedup();
+    for slot in affected {
+        if core.slot_alive(slot) {
+            core.schedule(slot, now);
+        }
+    }
+}
+
+/// Pop crossings and stale predictions until the calendar's top is a real contact (or
+/// lies beyond `limit`); with forces, stop at the first event of any kind.
+fn settle(core: &mut EventCore, now: f64, limit: f64, any_event_ends_the_step: bool) {
+    while let Some((slot, event)) = core.peek() {
+        if event.time > limit {
+            return;
+        }
+        match event.kind {
+            EventKind::Crossing { axis, step } => {
+                if any_event_ends_the_step && event.time > horizon(now) {
+                    return;
+                }
+                core.pop();
+                core.cross(slot, axis, step);
+                core.schedule(slot, event.time.max(now));
+            }
+            EventKind::Contact {
+                slot: partner,
+                counter,
+            } => {
+                if core.is_current(partner, counter) {
+                    return;
+                }
+                core.pop();
+                core.stats.stale += 1;
+                core.schedule(slot, event.time.max(now));
+            }
+        }
+    }
+}
+
+/// Δt to the calendar's next event, bounded by Δt_max and the time left.
+fn step_to_next_event(core: &EventCore, clock: &SimClock, dt_max: f64) -> f64 {
+    let now = clock.time;
+    let remaining = (clock.end - now).max(0.0);
+    let next = core.peek().map_or(f64::INFINITY, |(_, e)| e.time);
+    (next - now).max(0.0).min(dt_max).min(remaining)
+}
+
+fn dt_max_of(control: &StepControl) -> f64 {
+    match *control {
+        StepControl::Adaptive { dt_max, .. } => dt_max,
+        StepControl::Fixed { dt } => dt,
+    }
+}
+
+/// Stage `TimeStep`: re-predict what changed and choose Δt to the next contact.
+pub fn schedule_next_step(
+    mut core: ResMut<EventCore>,
+    mut clock: ResMut<SimClock>,
+    control: Res<StepControl>,
+    forces: Res<ForcesPresent>,
+    bodies: ReadQuery,
+    mut events: ResMut<StepEvents>,
+) {
+    let now = clock.time;
+    file_changes(&mut core, &mut events, &bodies, now);
+    let dt_max = dt_max_of(&control);
+    let limit = (now + dt_max).min(clock.end);
+    settle(&mut core, now, limit, forces.0);
+    clock.clamped_at_min = false;
+    clock.dt = step_to_next_event(&core, &clock, dt_max);
+}
+
+/// Stage `Boundary` (only with forces): re-predict the bodies the force systems changed
+/// and shorten Δt if one of them now meets something sooner.
+pub fn close_step(
+    mut core: ResMut<EventCore>,
+    mut clock: ResMut<SimClock>,
+    control: Res<StepControl>,
+    bodies: ReadQuery,
+    mut events: ResMut<StepEvents>,
+) {
+    if events.filed == events.touched.len() && events.filed_spawned == events.spawned.len() {
+        return;
+    }
+    let now = clock.time;
+    file_changes(&mut core, &mut events, &bodies, now);
+    let dt_max = dt_max_of(&control);
+    settle(&mut core, now, (now + dt_max).min(clock.end), true);
+    clock.dt = clock.dt.min(step_to_next_event(&core, &clock, dt_max));
+}
+
+/// Count the core's missed contacts into the run's counters (stage `Diagnostics`).
+pub fn report_overlaps(core: Res<EventCore>, mut counters: ResMut<Counters>) {
+    counters.overlap_violations = core.stats.deep_overlaps;
+}
