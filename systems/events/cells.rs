@@ -103,6 +103,8 @@ struct Level {
     all: Lists,
     /// Bodies native to this level, per cell.
     native: Lists,
+    /// Number of bodies native to this level (coarse levels are skipped while empty).
+    natives: u32,
 }
 
 /// Where a partner was found.
@@ -156,6 +158,7 @@ impl CellGrid {
                     capacity: width / (2.0 * WIDTH_SLACK),
                     all: Lists::with_cells(cells),
                     native: Lists::with_cells(cells),
+                    natives: 0,
                 });
                 if n % 2 != 0 || n / 2 < 3 {
                     break;
@@ -248,6 +251,7 @@ impl CellGrid {
         }
         let c = self.cell_at(own, x);
         self.cell_of[slot as usize] = c;
+        self.levels[own].natives += 1;
         self.link(slot, own, c, own);
     }
 
@@ -285,6 +289,7 @@ impl CellGrid {
         } else {
             let c = self.cell_of[slot as usize];
             self.unlink(slot, own, c, own);
+            self.levels[own].natives -= 1;
         }
         self.level_of[slot as usize] = u8::MAX;
     }
@@ -329,9 +334,10 @@ impl CellGrid {
         let c = self.coarse(own, self.cell_of[slot as usize], k);
         let w = self.levels[k].width;
         let side = 2.0 * self.half_width;
+        let inv_side = 1.0 / side;
         let rel = |v: f64, ci: u32| {
             let d = v - (-self.half_width + ci as f64 * w);
-            d - side * (d / side).round()
+            d - side * round_fast(d * inv_side)
         };
         DVec3::new(rel(x.x, c[0]), rel(x.y, c[1]), rel(x.z, c[2]))
     }
@@ -390,22 +396,24 @@ impl CellGrid {
         let c = self.cell_of[slot as usize];
         for k in own..self.levels.len() {
             let level = &self.levels[k];
+            if k != own && level.natives == 0 {
+                continue;
+            }
             let lists = if k == own { &level.all } else { &level.native };
             let ck = self.coarse(own, c, k);
-            let n = level.n as i64;
-            for dz in -1i8..=1 {
-                for dy in -1i8..=1 {
-                    for dx in -1i8..=1 {
-                        let at = [
-                            (ck[0] as i64 + dx as i64).rem_euclid(n) as u32,
-                            (ck[1] as i64 + dy as i64).rem_euclid(n) as u32,
-                            (ck[2] as i64 + dz as i64).rem_euclid(n) as u32,
-                        ];
+            let n = level.n;
+            // Wrapped neighbour coordinates along each axis, for offsets −1, 0, +1.
+            let around = |x: u32| [if x == 0 { n - 1 } else { x - 1 }, x, if x + 1 == n { 0 } else { x + 1 }];
+            let (ax, ay, az) = (around(ck[0]), around(ck[1]), around(ck[2]));
+            for (iz, &z) in az.iter().enumerate() {
+                for (iy, &y) in ay.iter().enumerate() {
+                    let row = (z as usize * n as usize + y as usize) * n as usize;
+                    for (ix, &x) in ax.iter().enumerate() {
                         let how = Partner::Cell {
                             level: k as u8,
-                            offset: [dx, dy, dz],
+                            offset: [ix as i8 - 1, iy as i8 - 1, iz as i8 - 1],
                         };
-                        for j in lists.iter(Self::cell_index(level.n, at)) {
+                        for j in lists.iter(row + x as usize) {
                             if j != slot {
                                 visit(j, how);
                             }
@@ -420,6 +428,13 @@ impl CellGrid {
             }
         }
     }
+}
+
+/// round(x) to the nearest integer (ties away from zero) without a libm call: the
+/// truncating conversion is one instruction. Exact for |x| < 2^52.
+#[inline]
+pub fn round_fast(x: f64) -> f64 {
+    (x + 0.5f64.copysign(x)) as i64 as f64
 }
 
 #[cfg(test)]

@@ -12,7 +12,7 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 
 use super::calendar::{Calendar, Event, EventKind};
-use super::cells::{CellGrid, Partner};
+use super::cells::{CellGrid, Partner, round_fast};
 use crate::systems::time_step::time_to_contact;
 
 const NONE: u32 = u32::MAX;
@@ -260,6 +260,8 @@ impl EventCore {
             let alive = &self.alive;
             let counters = &self.counters;
             let grid = &self.grid;
+            // My offset inside my cell at each level, computed once per level.
+            let mut rel_cache: [Option<DVec3>; 16] = [None; 16];
             let mut pair = |j: u32, how: Partner| {
                 let other = &slots[j as usize];
                 let x_other = other.at(now);
@@ -270,7 +272,8 @@ impl EventCore {
                     Partner::Cell { level, offset } => {
                         let k = level as usize;
                         let w = grid.width(k);
-                        let rel_me = grid.offset_in_cell(slot, k, x_me);
+                        let rel_me = *rel_cache[k.min(15)]
+                            .get_or_insert_with(|| grid.offset_in_cell(slot, k, x_me));
                         let rel_other = grid.offset_in_cell(j, k, x_other);
                         let cells =
                             DVec3::new(offset[0] as f64, offset[1] as f64, offset[2] as f64);
@@ -283,7 +286,8 @@ impl EventCore {
                         let side = 2.0 * self.half_width;
                         let d0 = {
                             let d = x_other - x_me;
-                            d - side * (d / side).round()
+                            let k = d / side;
+                            d - side * DVec3::new(round_fast(k.x), round_fast(k.y), round_fast(k.z))
                         };
                         let mut earliest: Option<f64> = None;
                         for image in IMAGES {
