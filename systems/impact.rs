@@ -107,6 +107,10 @@ pub enum SolveMethod {
     Fallback,
     /// Solver `plain` and the iteration failed: the last iterate is used.
     Unconverged,
+    /// The closed-form seed was the fixed point (exact when Q = 0): one evaluation of G.
+    ClosedForm,
+    /// The closed-form seed bracketed the root, which Illinois then found.
+    Seeded,
 }
 
 /// Result of one pair solve.
@@ -354,9 +358,101 @@ fn illinois(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64, tol: f64) -> (f64,
     (root, iterations)
 }
 
+/// The fixed point with the pre-impact hardness, in closed form (docs/model.md §14,
+/// generalised to unequal masses and either duration law).
+///
+/// Without softening (Q = 0) G(e) does not depend on heating. With the mean force
+/// Ī = m_red w² (1 + e)^{2κ} / (2 β b) (w the closing speed, b = min(b_i, b_j); κ = 0
+/// for the P04 duration law, where Ī does not depend on e, κ = 1 for P02's), the
+/// contact area a_c = (af − (af − a0) e) π b² and λ = m_red w² / (2 β b · 2 π b² H),
+/// e = G(e) becomes the quadratic
+///   (af − a0 − κλ) e² − (2af − a0 + 2κλ) e + (af − λ) = 0,
+/// whose smaller root is e* (for κ = 0 and equal masses: docs/model.md §14). With Q > 0
+/// heating lowers H, so this is the root for the hardest the pair can be: a first
+/// guess and one end of a bracket. `None` when the pair does not approach.
+pub fn restitution_seed(
+    model: &PairModel,
+    bi: &PairBody,
+    bj: &PairBody,
+    normal: DVec3,
+) -> Option<f64> {
+    let closing = (bi.velocity - bj.velocity).dot(normal);
+    if closing.is_nan() || closing <= 0.0 {
+        return None;
+    }
+    let h = hardness(model.h0, model.activation_energy, bi.temperature).min(hardness(
+        model.h0,
+        model.activation_energy,
+        bj.temperature,
+    ));
+    if h.is_infinite() {
+        return Some(1.0);
+    }
+    let bmin = bi.radius.min(bj.radius);
+    let reduced = bi.mass * bj.mass / (bi.mass + bj.mass);
+    let force = reduced * closing * closing / (2.0 * model.beta * bmin);
+    let lambda = force / (2.0 * std::f64::consts::PI * bmin * bmin * h);
+    let kappa = match model.duration {
+        DurationLaw::P04 => 0.0,
+        DurationLaw::P02 => 1.0,
+    };
+    let (a, b) = (model.af, model.af - model.a0);
+    let qc = a - lambda;
+    if qc <= 0.0 {
+        return Some(0.0); // G(0) ≤ 0: the pair bonds
+    }
+    let qa = b - kappa * lambda;
+    let qb = -(a + b + 2.0 * kappa * lambda);
+    let disc = qb * qb - 4.0 * qa * qc;
+    if disc.is_nan() || disc < 0.0 {
+        return None;
+    }
+    // The smaller root without cancellation: 2 qc / (−qb + √disc).
+    let e = 2.0 * qc / (-qb + disc.sqrt());
+    (0.0..=1.0).contains(&e).then_some(e)
+}
+
+/// The fixed point from a seed: accept it if G(seed) agrees to the tolerance (one
+/// evaluation), otherwise run Illinois on the side of the seed where F = e − G(e)
+/// changes sign.
+pub fn find_fixed_point_from(model: &PairModel, seed: f64, g: impl Fn(f64) -> f64) -> FixedPoint {
+    let next = g(seed);
+    if converged(model.tol, seed, next) {
+        return FixedPoint {
+            e: next,
+            iterations: 1,
+            fallback_iterations: 0,
+            method: SolveMethod::ClosedForm,
+        };
+    }
+    let (lo, hi) = if next > seed {
+        (seed, 1.0)
+    } else {
+        (0.0, seed)
+    };
+    let (root, fallback_iterations) = illinois(|x| x - g(x), lo, hi, model.tol);
+    FixedPoint {
+        e: root,
+        iterations: 1,
+        fallback_iterations,
+        method: SolveMethod::Seeded,
+    }
+}
+
 /// Solve one impact (docs/model.md §5): the fixed point, then bond (e* = 0) or bounce.
+///
+/// The safeguarded solver starts from [`restitution_seed`] (exact without softening);
+/// the `plain` solver is the papers' iteration from e0 = 0, kept for the studies.
 pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3) -> PairOutcome {
-    let fp = find_fixed_point(model, |e| trial(model, bi, bj, normal, e).g);
+    let g = |e| trial(model, bi, bj, normal, e).g;
+    let seed = match model.solver {
+        SolverKind::Safeguarded => restitution_seed(model, bi, bj, normal),
+        SolverKind::Plain => None,
+    };
+    let fp = match seed {
+        Some(seed) => find_fixed_point_from(model, seed, g),
+        None => find_fixed_point(model, g),
+    };
     let (mi, mj) = (bi.mass, bj.mass);
     let total = mi + mj;
     let v_cm = (mi * bi.velocity + mj * bj.velocity) / total;
@@ -507,7 +603,7 @@ pub fn resolve_impacts(
         counters.fixed_point_iterations += u64::from(out.iterations);
         counters.fallback_iterations += u64::from(out.fallback_iterations);
         match out.method {
-            SolveMethod::FixedPoint => {}
+            SolveMethod::FixedPoint | SolveMethod::ClosedForm | SolveMethod::Seeded => {}
             SolveMethod::Fallback => counters.fallbacks += 1,
             SolveMethod::Unconverged => counters.unconverged += 1,
         }
@@ -569,13 +665,69 @@ mod tests {
             sphere(1e-3, rho, DVec3::X * vp),
             sphere(1e-3, rho, -DVec3::X * vp),
         );
-        let out = solve_pair(&m, &bi, &bj, DVec3::X);
-        assert_eq!(out.method, SolveMethod::Fallback);
         let expected = closed_form_restitution(0.0, 1.0, 0.5);
+        // The papers' iteration from e0 = 0 needs the bracketed fallback …
+        let fp = find_fixed_point(&m, |e| trial(&m, &bi, &bj, DVec3::X, e).g);
+        assert_eq!(fp.method, SolveMethod::Fallback);
+        assert!((fp.e - expected).abs() < 1e-9, "{} vs {expected}", fp.e);
+        // … while the closed-form seed is the root: one evaluation of G (Q = 0).
+        let out = solve_pair(&m, &bi, &bj, DVec3::X);
+        assert_eq!(out.method, SolveMethod::ClosedForm);
+        assert_eq!(out.iterations + out.fallback_iterations, 1);
         assert!(
-            (out.restitution - expected).abs() < 1e-9,
+            (out.restitution - expected).abs() < 1e-12,
             "{} vs {expected}",
             out.restitution
+        );
+    }
+
+    #[test]
+    fn the_seed_solves_unequal_masses_and_both_duration_laws_without_softening() {
+        for duration in [DurationLaw::P04, DurationLaw::P02] {
+            for &(a0, speed) in &[(0.0, 3.0), (0.01, 7.0), (0.3, 12.0), (0.5, 30.0)] {
+                let mut m = model(a0, 1.0, 0.7);
+                m.duration = duration;
+                m.mu0 = 0.2; // friction does not enter G
+                let bi = sphere(1e-3, 2000.0, DVec3::new(speed, 1.0, 0.0));
+                let bj = sphere(2.3e-3, 2000.0, DVec3::new(-0.5 * speed, 0.0, 2.0));
+                let seed = restitution_seed(&m, &bi, &bj, DVec3::X).expect("approaching");
+                let g = trial(&m, &bi, &bj, DVec3::X, seed).g;
+                // A fixed point of G to rounding: the quadratic is exact when Q = 0.
+                assert!(
+                    (g - seed).abs() < 1e-12,
+                    "{duration:?} a0 = {a0}: {seed} vs {g}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn with_softening_the_seed_brackets_the_root_in_a_few_evaluations() {
+        let mut m = model(0.0, 1.0, 1.0);
+        m.activation_energy = 2e3;
+        m.alpha = 1e3;
+        let rho = 2000.0;
+        let vp = (0.3 * 3.0 * m.h0 * m.beta / (2.0 * rho)).sqrt();
+        let (bi, bj) = (
+            sphere(1e-3, rho, DVec3::X * vp),
+            sphere(1e-3, rho, -DVec3::X * vp),
+        );
+        let out = solve_pair(&m, &bi, &bj, DVec3::X);
+        assert_eq!(out.method, SolveMethod::Seeded);
+        let g = trial(&m, &bi, &bj, DVec3::X, out.restitution).g;
+        assert!(
+            (g - out.restitution).abs() < 1e-9,
+            "{} vs {g}",
+            out.restitution
+        );
+        let plain = find_fixed_point(&m, |e| trial(&m, &bi, &bj, DVec3::X, e).g);
+        assert!(
+            out.iterations + out.fallback_iterations < plain.iterations + plain.fallback_iterations,
+            "seeded {} + {} vs iteration {} + {}",
+            out.iterations,
+            out.fallback_iterations,
+            plain.iterations,
+            plain.fallback_iterations
         );
     }
 

@@ -192,6 +192,8 @@ fn method_name(m: SolveMethod) -> &'static str {
         SolveMethod::FixedPoint => "fixed_point",
         SolveMethod::Fallback => "fallback",
         SolveMethod::Unconverged => "unconverged",
+        SolveMethod::ClosedForm => "closed_form",
+        SolveMethod::Seeded => "seeded",
     }
 }
 

@@ -403,7 +403,13 @@ impl CellGrid {
             let ck = self.coarse(own, c, k);
             let n = level.n;
             // Wrapped neighbour coordinates along each axis, for offsets −1, 0, +1.
-            let around = |x: u32| [if x == 0 { n - 1 } else { x - 1 }, x, if x + 1 == n { 0 } else { x + 1 }];
+            let around = |x: u32| {
+                [
+                    if x == 0 { n - 1 } else { x - 1 },
+                    x,
+                    if x + 1 == n { 0 } else { x + 1 },
+                ]
+            };
             let (ax, ay, az) = (around(ck[0]), around(ck[1]), around(ck[2]));
             for (iz, &z) in az.iter().enumerate() {
                 for (iy, &y) in ay.iter().enumerate() {
