@@ -122,6 +122,9 @@ pub struct Summary {
     pub plugins: Vec<String>,
     /// Wall-clock seconds spent stepping.
     pub wall_seconds: f64,
+    /// The event core's own counts (absent on the stepped core).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub events: Option<crate::systems::events::core::EventStats>,
 }
 
 impl Summary {
@@ -160,6 +163,10 @@ impl Summary {
             invariant_violations: report.violations,
             plugins: sim.plugins().iter().map(|s| s.to_string()).collect(),
             wall_seconds: sim.wall_seconds(),
+            events: sim
+                .world()
+                .get_resource::<crate::systems::events::core::EventCore>()
+                .map(|core| core.stats),
         }
     }
 }

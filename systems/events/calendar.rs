@@ -14,6 +14,9 @@ pub enum EventKind {
     Contact { slot: u32, counter: u32 },
     /// The owner leaves its cell through face `axis` (0..3) towards `+1` or `-1`.
     Crossing { axis: u8, step: i8 },
+    /// Predictions through periodic images hold only while partners have moved less
+    /// than a fraction of the box relative to the owner: predict it again then.
+    Refresh,
 }
 
 /// One predicted event of one body.

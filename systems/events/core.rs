@@ -32,6 +32,10 @@ fn newly_overlapping(d: DVec3, u: DVec3, reach: f64, since: f64) -> bool {
         && (d - u * since).length() >= reach * (1.0 - DEEP_OVERLAP)
 }
 
+/// A prediction through periodic images is renewed after the partners have moved this
+/// fraction of the box side relative to the owner.
+const REFRESH_FRACTION: f64 = 0.25;
+
 /// One body's trajectory as the event core sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct Trajectory {
@@ -56,7 +60,7 @@ impl Trajectory {
 }
 
 /// Event counts of the core (cheap, always on).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EventStats {
     /// Cell crossings processed.
     pub crossings: u64,
@@ -74,6 +78,10 @@ pub struct EventStats {
 #[derive(Resource, Debug, Clone)]
 pub struct EventCore {
     half_width: f64,
+    /// Velocity of the frame the grid moves with [m/s]: the mean velocity of the cloud, so
+    /// that a bulk drift (P04's v̄ = (10, 10, 100) m/s) causes no cell crossings. Any
+    /// constant velocity is correct; only relative positions decide contacts.
+    frame_velocity: DVec3,
     slots: Vec<Trajectory>,
     counters: Vec<u32>,
     alive: Vec<bool>,
@@ -88,9 +96,16 @@ pub struct EventCore {
 
 impl EventCore {
     /// An empty core for the periodic cube of half-width `half_width` [m].
-    pub fn new(half_width: f64, min_radius: f64, bodies: usize, brute_force: bool) -> Self {
+    pub fn new(
+        half_width: f64,
+        min_radius: f64,
+        bodies: usize,
+        frame_velocity: DVec3,
+        brute_force: bool,
+    ) -> Self {
         Self {
             half_width,
+            frame_velocity,
             slots: Vec::with_capacity(bodies),
             counters: Vec::with_capacity(bodies),
             alive: Vec::with_capacity(bodies),
@@ -137,6 +152,19 @@ impl EventCore {
         w
     }
 
+    /// Where the grid's frame has moved by time t, modulo the box [m].
+    fn frame_shift(&self, t: f64) -> DVec3 {
+        let shift = self.frame_velocity * t;
+        let side = self.side();
+        let k = shift / side;
+        shift - side * DVec3::new(round_fast(k.x), round_fast(k.y), round_fast(k.z))
+    }
+
+    /// A trajectory's position at time t in the grid's moving frame [m].
+    fn grid_position(&self, t: &Trajectory, time: f64) -> DVec3 {
+        t.at(time) - self.frame_shift(time)
+    }
+
     fn min_image(&self, d: DVec3) -> DVec3 {
         let side = self.side();
         d - side * (d / side).round()
@@ -178,7 +206,8 @@ impl EventCore {
             self.slot_of_id.resize(id + 1, NONE);
         }
         self.slot_of_id[id] = slot;
-        self.grid.insert(slot, t.radius, t.position);
+        let x = self.wrap(self.grid_position(&t, t.t_ref));
+        self.grid.insert(slot, t.radius, x);
         slot
     }
 
@@ -206,7 +235,8 @@ impl EventCore {
         // The logical cell must hold the new position (a merged body sits at the centre
         // of mass, which may be in another cell).
         self.grid.remove(slot);
-        self.grid.insert(slot, t.radius, t.position);
+        let x = self.wrap(self.grid_position(&t, t.t_ref));
+        self.grid.insert(slot, t.radius, x);
     }
 
     /// Earliest scheduled event, if any.
@@ -242,7 +272,9 @@ impl EventCore {
     pub fn predict(&mut self, slot: u32, now: f64) -> Option<Event> {
         self.stats.predictions += 1;
         let me = self.slots[slot as usize];
-        let x_me = me.at(now);
+        // Positions in the grid's frame: relative positions are the same in any frame.
+        let shift = self.frame_shift(now);
+        let x_me = me.at(now) - shift;
         let mut best: Option<(f64, u64, Event)> = None;
         let mut consider = |t: f64, tie: u64, kind: EventKind| {
             let event = Event {
@@ -255,6 +287,8 @@ impl EventCore {
         };
         let mut tests = 0u64;
         let mut deep = 0u64;
+        // Largest relative speed to a partner paired through all images [m/s].
+        let mut fastest_any_image = 0.0f64;
         {
             let slots = &self.slots;
             let alive = &self.alive;
@@ -264,7 +298,7 @@ impl EventCore {
             let mut rel_cache: [Option<DVec3>; 16] = [None; 16];
             let mut pair = |j: u32, how: Partner| {
                 let other = &slots[j as usize];
-                let x_other = other.at(now);
+                let x_other = other.at(now) - shift;
                 let u = other.velocity - me.velocity;
                 let reach = me.radius + other.radius;
                 let since = now - me.t_ref.max(other.t_ref);
@@ -283,6 +317,7 @@ impl EventCore {
                         time_to_contact(d, u, reach)
                     }
                     Partner::AnyImage => {
+                        fastest_any_image = fastest_any_image.max(u.length());
                         let side = 2.0 * self.half_width;
                         let d0 = {
                             let d = x_other - x_me;
@@ -323,10 +358,18 @@ impl EventCore {
                 grid.for_each_candidate(slot, every, &mut pair);
             }
         }
+        // The 27 images around the minimum image hold every contact while the relative
+        // displacement stays below half a box (b_i + b_j < L); refresh well before.
+        if fastest_any_image > 0.0 {
+            let horizon = REFRESH_FRACTION * self.side() / fastest_any_image;
+            consider(horizon, u64::MAX, EventKind::Refresh);
+        }
         self.stats.pair_tests += tests;
         self.stats.deep_overlaps += deep;
         if !self.brute_force
-            && let Some((t, axis, step)) = self.grid.crossing(slot, x_me, me.velocity)
+            && let Some((t, axis, step)) =
+                self.grid
+                    .crossing(slot, x_me, me.velocity - self.frame_velocity)
         {
             // A contact at the same time wins the tie (u64::MAX): it is the physical event.
             consider(t, u64::MAX, EventKind::Crossing { axis, step });

@@ -22,6 +22,7 @@ pub mod cells;
 pub mod core;
 
 use bevy_ecs::prelude::*;
+use glam::DVec3;
 
 use self::calendar::EventKind;
 use self::core::{EventCore, Trajectory};
@@ -78,6 +79,21 @@ fn horizon(now: f64) -> f64 {
 pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
     let half_width = world.resource::<BoxGeometry>().half_width;
     let primary = world.resource::<MaterialConstants>().primary_radius;
+    // The grid moves with the cloud's mean velocity (see `EventCore`).
+    let mut momentum = DVec3::ZERO;
+    let mut mass = 0.0;
+    for (m, v) in world
+        .query_filtered::<(&Mass, &Velocity), With<Particle>>()
+        .iter(world)
+    {
+        momentum += m.0 * v.0;
+        mass += m.0;
+    }
+    let frame_velocity = if mass > 0.0 {
+        momentum / mass
+    } else {
+        DVec3::ZERO
+    };
     let mut rows: Vec<Trajectory> = world
         .query_filtered::<(
             Entity,
@@ -99,7 +115,13 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
         .collect();
     rows.sort_by_key(|t| t.id);
     let min_radius = rows.iter().map(|t| t.radius).fold(primary, f64::min);
-    let mut core = EventCore::new(half_width, min_radius, rows.len(), brute_force);
+    let mut core = EventCore::new(
+        half_width,
+        min_radius,
+        rows.len(),
+        frame_velocity,
+        brute_force,
+    );
     let slots: Vec<u32> = rows.into_iter().map(|t| core.insert(t)).collect();
     for slot in slots {
         core.schedule(slot, 0.0);
@@ -137,6 +159,7 @@ pub fn pop_due_contacts(
                 core.cross(slot, axis, step);
                 core.schedule(slot, event.time.max(now));
             }
+            EventKind::Refresh => core.schedule(slot, event.time.max(now)),
             EventKind::Contact {
                 slot: partner,
                 counter,
@@ -287,6 +310,13 @@ fn settle(core: &mut EventCore, now: f64, limit: f64, any_event_ends_the_step: b
                 }
                 core.pop();
                 core.cross(slot, axis, step);
+                core.schedule(slot, event.time.max(now));
+            }
+            EventKind::Refresh => {
+                if any_event_ends_the_step && event.time > horizon(now) {
+                    return;
+                }
+                core.pop();
                 core.schedule(slot, event.time.max(now));
             }
             EventKind::Contact {
