@@ -1,12 +1,15 @@
 //! New physics from outside the crate: linear gas drag as a plugin.
 //!
-//! A `SimPlugin` inserts its parameters as a resource and adds a system to one of the
-//! pipeline's stages (here after cooling, before drift). Run with
-//! `cargo run --release --example gas_drag`.
+//! A `SimPlugin` inserts its parameters as a resource and adds a force system with
+//! `add_force_systems`. The system reads and writes bodies through `Bodies`, which
+//! brings each body to the current time first (the event core keeps bodies at their
+//! own reference times) and has the event core re-predict every body it changed.
+//! Run with `cargo run --release --example gas_drag`.
 
 use agglo::bevy_ecs::prelude::*;
 use agglo::glam::DVec3;
 use agglo::prelude::*;
+use agglo::systems::bodies::Bodies;
 
 /// dv/dt = −(v − u)/τ toward the gas velocity u, integrated exactly over each step.
 #[derive(Resource, Clone, Copy)]
@@ -17,15 +20,9 @@ struct GasDrag {
     gas: DVec3,
 }
 
-fn apply_gas_drag(
-    drag: Res<GasDrag>,
-    clock: Res<SimClock>,
-    mut bodies: Query<&mut Velocity, With<Particle>>,
-) {
-    let decay = (-clock.dt / drag.tau).exp();
-    for mut v in &mut bodies {
-        v.0 = drag.gas + (v.0 - drag.gas) * decay;
-    }
+fn apply_gas_drag(drag: Res<GasDrag>, mut bodies: Bodies) {
+    let decay = (-bodies.dt() / drag.tau).exp();
+    bodies.update_all(|b| b.velocity = drag.gas + (b.velocity - drag.gas) * decay);
 }
 
 struct GasDragPlugin(GasDrag);
@@ -36,7 +33,7 @@ impl SimPlugin for GasDragPlugin {
     }
     fn build(&self, sim: &mut SimBuilder) {
         sim.insert_resource(self.0)
-            .add_systems(StepSystems::Cooling, apply_gas_drag);
+            .add_force_systems(apply_gas_drag);
     }
 }
 

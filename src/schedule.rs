@@ -30,11 +30,23 @@ use crate::systems;
 #[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct SimStep;
 
+/// The schedule of force systems, run at the start of each step and at the end of a run.
+#[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ForceStep;
+
+/// Runs the force systems (stage `Forces`).
+fn run_forces(world: &mut World) {
+    world.run_schedule(ForceStep);
+}
+
 /// The stages of one step L → L+1, chained in this order.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum StepSystems {
     /// 0. Empty slot for extensions, before anything else.
     First,
+    /// 0b. External forces over the interval just completed (extensions; see
+    /// [`SimBuilder::add_force_systems`]).
+    Forces,
     /// 1. Contact detection: periodic cell grid, contacts of this step (docs/model.md §4).
     Contact,
     /// 2. Impact / heat solve for every contact (docs/model.md §5).
@@ -45,8 +57,6 @@ pub enum StepSystems {
     Fragment,
     /// 5. The next step size from post-impact velocities (docs/model.md §4).
     TimeStep,
-    /// 5b. External forces over the coming step (extensions; see [`SimBuilder::add_force_systems`]).
-    Forces,
     /// 6. Cooling by convection and radiation (docs/model.md §8).
     Cooling,
     /// 7. Drift r ← r + Δt v.
@@ -63,12 +73,12 @@ impl StepSystems {
     /// Every stage, in pipeline order.
     pub const ORDER: [StepSystems; 12] = [
         StepSystems::First,
+        StepSystems::Forces,
         StepSystems::Contact,
         StepSystems::Impact,
         StepSystems::Merge,
         StepSystems::Fragment,
         StepSystems::TimeStep,
-        StepSystems::Forces,
         StepSystems::Cooling,
         StepSystems::Drift,
         StepSystems::Boundary,
@@ -90,6 +100,8 @@ pub trait SimPlugin {
 pub struct SimBuilder {
     world: World,
     schedule: Schedule,
+    forces: Option<Schedule>,
+    runs_forces: bool,
     scenario: Scenario,
     plugins: Vec<&'static str>,
 }
@@ -139,7 +151,6 @@ impl SimBuilder {
         world.init_resource::<StateChanged>();
         world.init_resource::<StepEvents>();
         world.insert_resource(LazyState(scenario.uses_event_core()));
-        world.init_resource::<systems::events::ForcesPresent>();
 
         let mut schedule = Schedule::new(SimStep);
         schedule.set_executor(SingleThreadedExecutor::new());
@@ -151,12 +162,12 @@ impl SimBuilder {
         schedule.configure_sets(
             (
                 StepSystems::First,
+                StepSystems::Forces,
                 StepSystems::Contact,
                 StepSystems::Impact,
                 StepSystems::Merge,
                 StepSystems::Fragment,
                 StepSystems::TimeStep,
-                StepSystems::Forces,
                 StepSystems::Cooling,
                 StepSystems::Drift,
                 StepSystems::Boundary,
@@ -169,6 +180,8 @@ impl SimBuilder {
         Ok(Self {
             world,
             schedule,
+            forces: None,
+            runs_forces: false,
             scenario: scenario.clone(),
             plugins: Vec::new(),
         })
@@ -194,18 +207,32 @@ impl SimBuilder {
         self
     }
 
-    /// Add force systems (drag, gravity, …) to the `Forces` stage. They must read and
-    /// write bodies through [`crate::systems::bodies::Bodies`], which brings each body
-    /// to the current time and tells the event core to re-predict it; with forces in
-    /// the scene the event core ends a step at every event, so forces act on bodies
-    /// whose cells are current.
+    /// Add force systems (drag, gravity, …). They run at the start of every step and
+    /// act over the interval just completed, Δt = `SimClock::dt` (a kick at the end of
+    /// each interval: between kicks every body moves ballistically, which is what the
+    /// event core predicts), and once more when the run ends. They must read and write
+    /// bodies through [`crate::systems::bodies::Bodies`], which brings each body to the
+    /// current time and has the event core re-predict what they change.
     pub fn add_force_systems<M>(
         &mut self,
         systems: impl IntoScheduleConfigs<ScheduleSystem, M>,
     ) -> &mut Self {
-        self.world
-            .insert_resource(systems::events::ForcesPresent(true));
-        self.add_systems(StepSystems::Forces, systems)
+        let forces = self.forces.get_or_insert_with(|| {
+            let mut forces = Schedule::new(ForceStep);
+            forces.set_executor(SingleThreadedExecutor::new());
+            forces.set_build_settings(ScheduleBuildSettings {
+                ambiguity_detection: LogLevel::Error,
+                ..Default::default()
+            });
+            forces
+        });
+        forces.add_systems(systems);
+        if !self.runs_forces {
+            self.schedule
+                .add_systems(run_forces.in_set(StepSystems::Forces));
+            self.runs_forces = true;
+        }
+        self
     }
 
     pub fn insert_resource<R: Resource>(&mut self, value: R) -> &mut Self {
@@ -240,15 +267,33 @@ impl SimBuilder {
             let message = e.to_string(self.schedule.graph(), &self.world);
             return Err(SimError::Schedule(message));
         }
-        let systems = self
+        let mut systems: Vec<String> = self
             .schedule
             .systems()
             .map_err(|e| SimError::Schedule(format!("{e:?}")))?
             .map(|(_, system)| short_name(&system.name().to_string()))
             .collect();
+        let has_forces = self.forces.is_some();
+        if let Some(mut forces) = self.forces.take() {
+            if let Err(e) = forces.initialize(&mut self.world) {
+                let message = e.to_string(forces.graph(), &self.world);
+                return Err(SimError::Schedule(message));
+            }
+            // List the force systems where they run: in place of their runner.
+            let names: Vec<String> = forces
+                .systems()
+                .map_err(|e| SimError::Schedule(format!("{e:?}")))?
+                .map(|(_, system)| short_name(&system.name().to_string()))
+                .collect();
+            if let Some(at) = systems.iter().position(|s| s.ends_with("run_forces")) {
+                systems.splice(at..=at, names);
+            }
+            self.world.add_schedule(forces);
+        }
         Ok(Simulation {
             world: self.world,
             schedule: self.schedule,
+            has_forces,
             scenario: self.scenario,
             plugins: self.plugins,
             systems,
@@ -280,6 +325,8 @@ fn advance_clock(mut clock: ResMut<SimClock>, mut events: ResMut<StepEvents>) {
 pub struct Simulation {
     world: World,
     schedule: Schedule,
+    /// True when force systems run (their last interval is applied when the run ends).
+    has_forces: bool,
     scenario: Scenario,
     plugins: Vec<&'static str>,
     systems: Vec<String>,
@@ -380,6 +427,10 @@ impl Simulation {
                     time: c.time,
                 });
             }
+        }
+        if self.has_forces {
+            // The last interval's kick (forces act at the end of each interval).
+            self.world.run_schedule(ForceStep);
         }
         self.bring_all_to_now();
         Ok(())

@@ -1,4 +1,7 @@
-//! Stage 6 — cooling between impacts (docs/model.md §8, P04 stage II (6.19)–(6.21)).
+//! Stage 6 — cooling between impacts on the stepped core (docs/model.md §8, P04
+//! stage II (6.19)–(6.21)). The law and its integrators live in `cooling_law.rs`; the
+//! event core cools each body over its whole interval with [`CoolingLaw::advance`]
+//! when the body is read (`bodies.rs`).
 //!
 //! m C dθ/dt = − hc a_s (θ − θ0) − B a_s ε (θ⁴ − θs⁴), a_s = 4π b², for every body.
 //! Two integrators: `explicit` (forward Euler, the papers' choice; stable only for
@@ -16,18 +19,10 @@ use crate::resources::{
 };
 use crate::scenario::CoolingMethod;
 
-/// The cooling law of one body: dθ/dt = −(k_c (θ − θ0) + k_r (θ⁴ − θs⁴)).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CoolingLaw {
-    /// hc a_s / (m C) [1/s].
-    pub k_convection: f64,
-    /// B ε a_s / (m C) [1/(s K³)].
-    pub k_radiation: f64,
-    /// Gas temperature θ0 [K].
-    pub theta_gas: f64,
-    /// Far-field temperature θs [K].
-    pub theta_far: f64,
-}
+pub use super::cooling_law::{
+    CoolingLaw, convective_closed_form, radiative_closed_form,
+    radiative_closed_form_with_far_field, radiative_time_to,
+};
 
 impl CoolingLaw {
     /// The law for a sphere of mass `mass` [kg] and radius `radius` [m].
@@ -42,57 +37,6 @@ impl CoolingLaw {
         }
     }
 
-    /// dθ/dt at θ [K/s].
-    pub fn rate(&self, theta: f64) -> f64 {
-        -(self.k_convection * (theta - self.theta_gas)
-            + self.k_radiation * (theta.powi(4) - self.theta_far.powi(4)))
-    }
-
-    /// Forward Euler step (P04 (6.21)). Unbounded for large Δt: may go negative or infinite.
-    pub fn explicit_step(&self, theta: f64, dt: f64) -> f64 {
-        theta + dt * self.rate(theta)
-    }
-
-    /// Backward Euler step: solves θ − θ_old − Δt·rate(θ) = 0 by Newton, safeguarded by
-    /// the bracket [min(θ_old, θ0, θs), max(θ_old, θ0, θs)] on which the residual changes sign.
-    pub fn implicit_step(&self, theta_old: f64, dt: f64) -> f64 {
-        let f = |t: f64| t - theta_old - dt * self.rate(t);
-        let df = |t: f64| 1.0 + dt * (self.k_convection + 4.0 * self.k_radiation * t.powi(3));
-        let mut lo = theta_old.min(self.theta_gas).min(self.theta_far);
-        let mut hi = theta_old.max(self.theta_gas).max(self.theta_far);
-        if self.k_convection == 0.0 {
-            // Without convection θ0 is no attractor: the bracket is [θs, θ_old] (or reversed).
-            lo = theta_old.min(self.theta_far);
-            hi = theta_old.max(self.theta_far);
-        }
-        if self.k_radiation == 0.0 && self.k_convection == 0.0 {
-            return theta_old;
-        }
-        let mut t = theta_old;
-        for _ in 0..100 {
-            let ft = f(t);
-            if ft == 0.0 {
-                return t;
-            }
-            if ft > 0.0 {
-                hi = t;
-            } else {
-                lo = t;
-            }
-            let mut next = t - ft / df(t);
-            if !(next > lo && next < hi) {
-                next = 0.5 * (lo + hi);
-            }
-            // Stop at rounding level. (A looser stop, 1e-8, left errors of ~1e-8 θ for
-            // steps far below the explicit limit: the study's cooling map showed it.)
-            if (next - t).abs() <= 1e-14 * next.abs() {
-                return next;
-            }
-            t = next;
-        }
-        t
-    }
-
     /// One step with the chosen method.
     pub fn step(&self, method: CoolingMethod, theta: f64, dt: f64) -> f64 {
         match method {
@@ -102,38 +46,6 @@ impl CoolingLaw {
             CoolingMethod::Exact => self.advance(theta, dt),
         }
     }
-
-    /// TEMPORARY: θ after dt by RK4 in u = θ^-3 with many substeps (to be replaced).
-    pub fn advance(&self, theta: f64, dt: f64) -> f64 {
-        if dt <= 0.0 || (self.k_convection == 0.0 && self.k_radiation == 0.0) {
-            return theta;
-        }
-        let f = |u: f64| {
-            let t = u.powf(-1.0 / 3.0);
-            -3.0 * self.rate(t) / t.powi(4)
-        };
-        let n = 2000;
-        let h = dt / n as f64;
-        let mut u = theta.powi(-3);
-        for _ in 0..n {
-            let k1 = f(u);
-            let k2 = f(u + 0.5 * h * k1);
-            let k3 = f(u + 0.5 * h * k2);
-            let k4 = f(u + h * k3);
-            u += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
-        }
-        u.powf(-1.0 / 3.0)
-    }
-
-    /// Forward Euler's stability limit at θ [s]: 1 / (k_c + 4 k_r θ³).
-    pub fn explicit_limit(&self, theta: f64) -> f64 {
-        1.0 / (self.k_convection + 4.0 * self.k_radiation * theta.powi(3))
-    }
-}
-
-/// Exact radiative cooling with hc = 0, θs = 0: θ(t) = (θ(0)^{-3} + 3 k t)^{-1/3}, k = k_r.
-pub fn radiative_closed_form(theta_initial: f64, k_radiation: f64, t: f64) -> f64 {
-    (theta_initial.powi(-3) + 3.0 * k_radiation * t).powf(-1.0 / 3.0)
 }
 
 /// The system.

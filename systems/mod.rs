@@ -10,6 +10,7 @@ pub mod bodies;
 pub mod boundary;
 pub mod contact;
 pub mod cooling;
+pub mod cooling_law;
 pub mod diagnostics;
 pub mod drift;
 pub mod events;
@@ -40,10 +41,7 @@ impl SimPlugin for ContactPlugin {
             sim.insert_resource(core)
                 .add_systems(StepSystems::Contact, events::pop_due_contacts)
                 .add_systems(StepSystems::TimeStep, events::schedule_next_step)
-                .add_systems(
-                    StepSystems::Boundary,
-                    (events::close_step, events::report_overlaps).chain(),
-                );
+                .add_systems(StepSystems::Boundary, events::report_overlaps);
             return;
         }
         sim.init_resource::<contact::NeighbourTable>()

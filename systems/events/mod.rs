@@ -10,9 +10,8 @@
 //!   spawned, despawned bodies, from [`StepEvents`]), re-predicts those bodies only,
 //!   advances the calendar past crossings and stale events to the next real contact,
 //!   and sets Δt to reach it (bounded by Δt_max and T).
-//! With force systems in the scene, [`close_step`] (stage `Boundary`) re-predicts the
-//! bodies they changed, and a step ends at every event so that no body's cell runs
-//! ahead of the time at which forces act.
+//! Force systems act at the start of a step, over the interval just completed (see
+//! `SimBuilder::add_force_systems`): the bodies they change are filed with the rest.
 //!
 //! Drift, periodic wrapping and cooling need no system: they happen when a body is
 //! brought to the current time (`systems/bodies.rs`).
@@ -37,10 +36,6 @@ use crate::resources::{
 
 /// Events closer than this (relative to t) count as simultaneous.
 const SIMULTANEOUS: f64 = 1e-13;
-
-/// Whether steps end at every event (forces present) or at contacts only.
-#[derive(Resource, Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct ForcesPresent(pub bool);
 
 type LazyQuery<'w, 's> = Query<
     'w,
@@ -296,26 +291,20 @@ fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuer
     }
 }
 
-/// Pop crossings and stale predictions until the calendar's top is a real contact (or
-/// lies beyond `limit`); with forces, stop at the first event of any kind.
-fn settle(core: &mut EventCore, now: f64, limit: f64, any_event_ends_the_step: bool) {
+/// Pop crossings, refreshes and stale predictions until the calendar's top is a real
+/// contact (or lies beyond `limit`).
+fn settle(core: &mut EventCore, now: f64, limit: f64) {
     while let Some((slot, event)) = core.peek() {
         if event.time > limit {
             return;
         }
         match event.kind {
             EventKind::Crossing { axis, step } => {
-                if any_event_ends_the_step && event.time > horizon(now) {
-                    return;
-                }
                 core.pop();
                 core.cross(slot, axis, step);
                 core.schedule(slot, event.time.max(now));
             }
             EventKind::Refresh => {
-                if any_event_ends_the_step && event.time > horizon(now) {
-                    return;
-                }
                 core.pop();
                 core.schedule(slot, event.time.max(now));
             }
@@ -354,7 +343,6 @@ pub fn schedule_next_step(
     mut core: ResMut<EventCore>,
     mut clock: ResMut<SimClock>,
     control: Res<StepControl>,
-    forces: Res<ForcesPresent>,
     bodies: ReadQuery,
     mut events: ResMut<StepEvents>,
 ) {
@@ -362,28 +350,9 @@ pub fn schedule_next_step(
     file_changes(&mut core, &mut events, &bodies, now);
     let dt_max = dt_max_of(&control);
     let limit = (now + dt_max).min(clock.end);
-    settle(&mut core, now, limit, forces.0);
+    settle(&mut core, now, limit);
     clock.clamped_at_min = false;
     clock.dt = step_to_next_event(&core, &clock, dt_max);
-}
-
-/// Stage `Boundary` (only with forces): re-predict the bodies the force systems changed
-/// and shorten Δt if one of them now meets something sooner.
-pub fn close_step(
-    mut core: ResMut<EventCore>,
-    mut clock: ResMut<SimClock>,
-    control: Res<StepControl>,
-    bodies: ReadQuery,
-    mut events: ResMut<StepEvents>,
-) {
-    if events.filed == events.touched.len() && events.filed_spawned == events.spawned.len() {
-        return;
-    }
-    let now = clock.time;
-    file_changes(&mut core, &mut events, &bodies, now);
-    let dt_max = dt_max_of(&control);
-    settle(&mut core, now, (now + dt_max).min(clock.end), true);
-    clock.dt = clock.dt.min(step_to_next_event(&core, &clock, dt_max));
 }
 
 /// Count the core's missed contacts into the run's counters (stage `Diagnostics`).
