@@ -1,5 +1,5 @@
-//! Engine speed (issue 2): the P04 best case end to end, a dilute cloud's
-//! particle-step throughput at N = 100 000, and the pair solve alone.
+//! Engine speed: the P04 best case end to end (event core), a dilute cloud's
+//! throughput at N = 100 000, and the pair solve alone (closed form, seeded, plain).
 //!
 //! Run: `cargo bench --bench engine`. Figures are reported in the issue notes and README.
 
@@ -61,6 +61,8 @@ fn dilute(c: &mut Criterion) {
         skin: 0.5,
     };
     scenario.time.end = 1.0;
+    // The stepped core: the event core does no per-body work in a step without events.
+    scenario.time.core = agglo::scenario::Core::Stepped;
     let steps = 20u64;
     let mut group = c.benchmark_group("dilute_cloud");
     group
@@ -104,11 +106,22 @@ fn pair_solve(c: &mut Criterion) {
         max_iterations: 100,
         solver: agglo::scenario::SolverKind::Safeguarded,
     };
-    c.bench_function("pair solve a0=0.5 (fixed point)", |b| {
+    c.bench_function("pair solve a0=0.5, Q=0 (closed form)", |b| {
         b.iter(|| solve_pair(&model, &body(2.0), &body(-2.0), DVec3::X))
     });
     model.a0 = 0.0;
-    c.bench_function("pair solve a0=0 (fallback)", |b| {
+    c.bench_function("pair solve a0=0, Q=0 (closed form)", |b| {
+        b.iter(|| solve_pair(&model, &body(2.0), &body(-2.0), DVec3::X))
+    });
+    // With softening the closed form is a bracket end: Illinois finishes the solve.
+    model.activation_energy = 2e3;
+    model.alpha = 1e3;
+    c.bench_function("pair solve a0=0, Q>0 (seeded Illinois)", |b| {
+        b.iter(|| solve_pair(&model, &body(2.0), &body(-2.0), DVec3::X))
+    });
+    model.solver = agglo::scenario::SolverKind::Plain;
+    model.max_iterations = 100;
+    c.bench_function("pair solve a0=0, Q>0 (papers' iteration, cap 100)", |b| {
         b.iter(|| solve_pair(&model, &body(2.0), &body(-2.0), DVec3::X))
     });
 }

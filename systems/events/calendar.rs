@@ -50,8 +50,9 @@ pub struct Calendar {
     heap: Vec<Entry>,
     /// Position of each slot in `heap`, or ABSENT.
     position: Vec<u32>,
-    /// The event of each slot (valid while the slot is in the heap).
-    events: Vec<Event>,
+    /// What the event of each slot is (valid while the slot is in the heap; its time
+    /// is in the heap entry).
+    kinds: Vec<EventKind>,
 }
 
 impl Calendar {
@@ -68,20 +69,14 @@ impl Calendar {
     pub fn bytes(&self) -> usize {
         self.heap.capacity() * std::mem::size_of::<Entry>()
             + self.position.capacity() * 4
-            + self.events.capacity() * std::mem::size_of::<Event>()
+            + self.kinds.capacity() * std::mem::size_of::<EventKind>()
     }
 
     fn ensure(&mut self, slot: u32) {
         let need = slot as usize + 1;
         if self.position.len() < need {
             self.position.resize(need, ABSENT);
-            self.events.resize(
-                need,
-                Event {
-                    time: f64::INFINITY,
-                    kind: EventKind::Crossing { axis: 0, step: 0 },
-                },
-            );
+            self.kinds.resize(need, EventKind::Refresh);
         }
     }
 
@@ -92,7 +87,7 @@ impl Calendar {
         match event {
             None => self.remove(slot),
             Some(event) => {
-                self.events[slot as usize] = event;
+                self.kinds[slot as usize] = event.kind;
                 let entry = Entry {
                     time: event.time,
                     id,
@@ -139,9 +134,15 @@ impl Calendar {
 
     /// The earliest event: (slot, event).
     pub fn peek(&self) -> Option<(u32, Event)> {
-        self.heap
-            .first()
-            .map(|e| (e.slot, self.events[e.slot as usize]))
+        self.heap.first().map(|e| {
+            (
+                e.slot,
+                Event {
+                    time: e.time,
+                    kind: self.kinds[e.slot as usize],
+                },
+            )
+        })
     }
 
     /// Remove and return the earliest event.

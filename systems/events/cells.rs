@@ -23,6 +23,9 @@ use glam::DVec3;
 
 const NONE: u32 = u32::MAX;
 
+/// Finest grid at most this many cells per side (cell coordinates are stored as u16).
+const MAX_CELLS_PER_SIDE: u32 = 1024;
+
 /// Cells wider than this many radii of the smallest body…
 const WIDTH_SLACK: f64 = 1.0 + 1e-9;
 
@@ -99,9 +102,13 @@ struct Level {
     width: f64,
     /// Largest radius that is native here [m].
     capacity: f64,
-    /// Bodies of this level or finer, per cell.
+    /// True once a body has been native here: only then are the lists kept (memory:
+    /// a cloud of primaries uses the finest level alone).
+    active: bool,
+    /// Bodies of this level or finer, per cell (kept while active).
     all: Lists,
-    /// Bodies native to this level, per cell.
+    /// Bodies native to this level, per cell (kept while active, above level 0: only
+    /// finer bodies read it, and there are none below level 0).
     native: Lists,
     /// Number of bodies native to this level (coarse levels are skipped while empty).
     natives: u32,
@@ -125,8 +132,8 @@ pub struct CellGrid {
     whole: Lists,
     /// Level of each slot (levels.len() = whole-box), or u8::MAX if absent.
     level_of: Vec<u8>,
-    /// Cell coordinates at the slot's own level (gridded levels only).
-    cell_of: Vec<[u32; 3]>,
+    /// Cell coordinates at the slot's own level (gridded levels only; ≤ 1024 per side).
+    cell_of: Vec<[u16; 3]>,
 }
 
 impl CellGrid {
@@ -137,7 +144,7 @@ impl CellGrid {
         let side = 2.0 * half_width;
         let by_size = (side / (2.0 * min_radius * WIDTH_SLACK)).floor();
         let by_count = (4.0 * bodies.max(1) as f64).cbrt().ceil().max(3.0);
-        let most = by_size.min(by_count).min(1024.0) as u32;
+        let most = by_size.min(by_count).min(MAX_CELLS_PER_SIDE as f64) as u32;
         let mut levels = Vec::new();
         if most >= 3 {
             // Largest n ≤ most of the form 2^p or 3·2^p: halving then reaches 3 or 4.
@@ -152,12 +159,14 @@ impl CellGrid {
             loop {
                 let width = side / n as f64;
                 let cells = (n as usize).pow(3);
+                let _ = cells;
                 levels.push(Level {
                     n,
                     width,
                     capacity: width / (2.0 * WIDTH_SLACK),
-                    all: Lists::with_cells(cells),
-                    native: Lists::with_cells(cells),
+                    active: false,
+                    all: Lists::default(),
+                    native: Lists::default(),
                     natives: 0,
                 });
                 if n % 2 != 0 || n / 2 < 3 {
@@ -193,7 +202,7 @@ impl CellGrid {
             .sum::<usize>()
             + self.whole.bytes()
             + self.level_of.capacity()
-            + 12 * self.cell_of.capacity()
+            + 6 * self.cell_of.capacity()
     }
 
     /// The level a body of radius `radius` [m] belongs to.
@@ -217,19 +226,39 @@ impl CellGrid {
         (c[2] as usize * n + c[1] as usize) * n + c[0] as usize
     }
 
-    fn coarse(&self, own: usize, c: [u32; 3], k: usize) -> [u32; 3] {
+    fn coarse(&self, own: usize, c: [u16; 3], k: usize) -> [u32; 3] {
         let shift = k - own;
-        c.map(|x| x >> shift)
+        c.map(|x| (x as u32) >> shift)
     }
 
     /// Cell coordinates of a wrapped position at a gridded level.
-    fn cell_at(&self, k: usize, x: DVec3) -> [u32; 3] {
+    fn cell_at(&self, k: usize, x: DVec3) -> [u16; 3] {
         let l = &self.levels[k];
         let f = |v: f64| {
             let c = ((v + self.half_width) / l.width).floor();
-            (c.max(0.0) as u32).min(l.n - 1)
+            (c.max(0.0) as u32).min(l.n - 1) as u16
         };
         [f(x.x), f(x.y), f(x.z)]
+    }
+
+    /// Start keeping level k's lists: file every finer body already present.
+    fn activate(&mut self, k: usize) {
+        let level = &mut self.levels[k];
+        let cells = (level.n as usize).pow(3);
+        level.all = Lists::with_cells(cells);
+        if k > 0 {
+            level.native = Lists::with_cells(cells);
+        }
+        level.active = true;
+        for slot in 0..self.level_of.len() as u32 {
+            let own = self.level_of[slot as usize];
+            if own == u8::MAX || own as usize >= k {
+                continue;
+            }
+            let ck = self.coarse(own as usize, self.cell_of[slot as usize], k);
+            let idx = Self::cell_index(self.levels[k].n, ck);
+            self.levels[k].all.push(idx, slot);
+        }
     }
 
     fn ensure(&mut self, slot: u32) {
@@ -249,6 +278,9 @@ impl CellGrid {
             self.whole.push(0, slot);
             return;
         }
+        if !self.levels[own].active {
+            self.activate(own);
+        }
         let c = self.cell_at(own, x);
         self.cell_of[slot as usize] = c;
         self.levels[own].natives += 1;
@@ -256,23 +288,29 @@ impl CellGrid {
     }
 
     /// Link into the lists of levels `from..` (own level `own`, own-level cell `c`).
-    fn link(&mut self, slot: u32, own: usize, c: [u32; 3], from: usize) {
+    fn link(&mut self, slot: u32, own: usize, c: [u16; 3], from: usize) {
         for k in from..self.levels.len() {
+            if !self.levels[k].active {
+                continue;
+            }
             let ck = self.coarse(own, c, k);
             let idx = Self::cell_index(self.levels[k].n, ck);
             self.levels[k].all.push(idx, slot);
-            if k == own {
+            if k == own && k > 0 {
                 self.levels[k].native.push(idx, slot);
             }
         }
     }
 
-    fn unlink(&mut self, slot: u32, own: usize, c: [u32; 3], from: usize) {
+    fn unlink(&mut self, slot: u32, own: usize, c: [u16; 3], from: usize) {
         for k in from..self.levels.len() {
+            if !self.levels[k].active {
+                continue;
+            }
             let ck = self.coarse(own, c, k);
             let idx = Self::cell_index(self.levels[k].n, ck);
             self.levels[k].all.unlink(idx, slot);
-            if k == own {
+            if k == own && k > 0 {
                 self.levels[k].native.unlink(idx, slot);
             }
         }
@@ -300,7 +338,7 @@ impl CellGrid {
         let old = self.cell_of[slot as usize];
         let n = self.levels[own].n;
         let mut new = old;
-        new[axis] = ((old[axis] as i64 + step as i64).rem_euclid(n as i64)) as u32;
+        new[axis] = ((old[axis] as i64 + step as i64).rem_euclid(n as i64)) as u16;
         // Coarser cells change only when the coarse coordinate changes.
         let first_changed = (own..self.levels.len())
             .find(|&k| self.coarse(own, old, k) != self.coarse(own, new, k))
@@ -311,14 +349,14 @@ impl CellGrid {
         if let Some(last) = last_changed {
             for k in first_changed..=last {
                 let (co, cn) = (self.coarse(own, old, k), self.coarse(own, new, k));
-                if co == cn {
+                if co == cn || !self.levels[k].active {
                     continue;
                 }
                 let lvl = &mut self.levels[k];
                 let (io, inew) = (Self::cell_index(lvl.n, co), Self::cell_index(lvl.n, cn));
                 lvl.all.unlink(io, slot);
                 lvl.all.push(inew, slot);
-                if k == own {
+                if k == own && k > 0 {
                     lvl.native.unlink(io, slot);
                     lvl.native.push(inew, slot);
                 }

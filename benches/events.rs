@@ -1,0 +1,75 @@
+//! The event core's cost per event (issue 8): the peer clouds of `benches/peers/`
+//! (the same scenes REBOUND runs) at N = 1e3, 1e4, 1e5.
+//!
+//! - `bounce/N`: 2000 steps of the bouncing cloud from a fresh start (every step is one
+//!   impact: the time per step is the time per collision, pair solve included);
+//! - `merge/N`: the merging cloud run to T (every contact bonds; N − 1 events at most).
+//!
+//! Run: `cargo bench --bench events`. The figures are in the README's speed section.
+
+use std::path::Path;
+use std::time::Duration;
+
+use agglo::prelude::*;
+use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+
+fn peer(variant: &str, n: usize) -> Scenario {
+    Scenario::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("benches/peers/scenes")
+            .join(format!("peer_{variant}_{n}.json")),
+    )
+    .expect("peer scene")
+}
+
+fn bounce(c: &mut Criterion) {
+    let steps = 2000u64;
+    let mut group = c.benchmark_group("bounce");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(10));
+    group.throughput(Throughput::Elements(steps));
+    for n in [1_000, 10_000, 100_000] {
+        let scenario = peer("bounce", n);
+        group.bench_function(
+            format!("N={n}, {steps} collisions (elements = collisions)"),
+            |b| {
+                b.iter_batched(
+                    || Simulation::new(&scenario).unwrap(),
+                    |mut sim| {
+                        for _ in 0..steps {
+                            sim.step().unwrap();
+                        }
+                        sim.counters().impacts
+                    },
+                    BatchSize::PerIteration,
+                )
+            },
+        );
+    }
+    group.finish();
+}
+
+fn merge(c: &mut Criterion) {
+    let mut group = c.benchmark_group("merge");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(10));
+    for n in [1_000, 10_000, 100_000] {
+        let scenario = peer("merge", n);
+        group.bench_function(format!("N={n} to T"), |b| {
+            b.iter_batched(
+                || Simulation::new(&scenario).unwrap(),
+                |mut sim| {
+                    sim.run().unwrap();
+                    sim.counters().bonds
+                },
+                BatchSize::PerIteration,
+            )
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bounce, merge);
+criterion_main!(benches);
