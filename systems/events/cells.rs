@@ -114,6 +114,13 @@ struct Level {
     natives: u32,
 }
 
+/// A slot's level and cell at that level.
+#[derive(Debug, Clone, Copy)]
+struct Place {
+    cell: [u16; 3],
+    level: u8,
+}
+
 /// Where a partner was found.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Partner {
@@ -131,9 +138,10 @@ pub struct CellGrid {
     /// Natives of the whole-box level.
     whole: Lists,
     /// Level of each slot (levels.len() = whole-box), or u8::MAX if absent.
-    level_of: Vec<u8>,
-    /// Cell coordinates at the slot's own level (gridded levels only; ≤ 1024 per side).
-    cell_of: Vec<[u16; 3]>,
+    /// Where each slot is: its level (levels.len() = whole-box, u8::MAX = absent) and
+    /// its cell at that level (gridded levels only). One array, so a partner costs one
+    /// memory access.
+    place: Vec<Place>,
 }
 
 impl CellGrid {
@@ -179,8 +187,7 @@ impl CellGrid {
             half_width,
             levels,
             whole: Lists::with_cells(1),
-            level_of: Vec::new(),
-            cell_of: Vec::new(),
+            place: Vec::new(),
         }
     }
 
@@ -201,8 +208,7 @@ impl CellGrid {
             .map(|l| l.all.bytes() + l.native.bytes())
             .sum::<usize>()
             + self.whole.bytes()
-            + self.level_of.capacity()
-            + 6 * self.cell_of.capacity()
+            + std::mem::size_of::<Place>() * self.place.capacity()
     }
 
     /// The level a body of radius `radius` [m] belongs to.
@@ -215,8 +221,8 @@ impl CellGrid {
 
     /// Level of a slot (None if absent).
     pub fn level_of(&self, slot: u32) -> Option<u8> {
-        match self.level_of.get(slot as usize) {
-            Some(&k) if k != u8::MAX => Some(k),
+        match self.place.get(slot as usize).map(|p| p.level) {
+            Some(k) if k != u8::MAX => Some(k),
             _ => None,
         }
     }
@@ -250,12 +256,12 @@ impl CellGrid {
             level.native = Lists::with_cells(cells);
         }
         level.active = true;
-        for slot in 0..self.level_of.len() as u32 {
-            let own = self.level_of[slot as usize];
+        for slot in 0..self.place.len() as u32 {
+            let own = self.place[slot as usize].level;
             if own == u8::MAX || own as usize >= k {
                 continue;
             }
-            let ck = self.coarse(own as usize, self.cell_of[slot as usize], k);
+            let ck = self.coarse(own as usize, self.place[slot as usize].cell, k);
             let idx = Self::cell_index(self.levels[k].n, ck);
             self.levels[k].all.push(idx, slot);
         }
@@ -263,9 +269,14 @@ impl CellGrid {
 
     fn ensure(&mut self, slot: u32) {
         let need = slot as usize + 1;
-        if self.level_of.len() < need {
-            self.level_of.resize(need, u8::MAX);
-            self.cell_of.resize(need, [0; 3]);
+        if self.place.len() < need {
+            self.place.resize(
+                need,
+                Place {
+                    cell: [0; 3],
+                    level: u8::MAX,
+                },
+            );
         }
     }
 
@@ -273,7 +284,7 @@ impl CellGrid {
     pub fn insert(&mut self, slot: u32, radius: f64, x: DVec3) {
         self.ensure(slot);
         let own = self.level_for(radius) as usize;
-        self.level_of[slot as usize] = own as u8;
+        self.place[slot as usize].level = own as u8;
         if own == self.levels.len() {
             self.whole.push(0, slot);
             return;
@@ -282,7 +293,7 @@ impl CellGrid {
             self.activate(own);
         }
         let c = self.cell_at(own, x);
-        self.cell_of[slot as usize] = c;
+        self.place[slot as usize].cell = c;
         self.levels[own].natives += 1;
         self.link(slot, own, c, own);
     }
@@ -325,17 +336,17 @@ impl CellGrid {
         if own == self.levels.len() {
             self.whole.unlink(0, slot);
         } else {
-            let c = self.cell_of[slot as usize];
+            let c = self.place[slot as usize].cell;
             self.unlink(slot, own, c, own);
             self.levels[own].natives -= 1;
         }
-        self.level_of[slot as usize] = u8::MAX;
+        self.place[slot as usize].level = u8::MAX;
     }
 
     /// Move a gridded body one cell along `axis` by `step` (±1) at its own level.
     pub fn cross(&mut self, slot: u32, axis: usize, step: i8) {
-        let own = self.level_of[slot as usize] as usize;
-        let old = self.cell_of[slot as usize];
+        let own = self.place[slot as usize].level as usize;
+        let old = self.place[slot as usize].cell;
         let n = self.levels[own].n;
         let mut new = old;
         new[axis] = ((old[axis] as i64 + step as i64).rem_euclid(n as i64)) as u16;
@@ -362,14 +373,14 @@ impl CellGrid {
                 }
             }
         }
-        self.cell_of[slot as usize] = new;
+        self.place[slot as usize].cell = new;
     }
 
     /// Offset of `x` (a position, any image) from the low corner of the slot's logical
     /// cell at level `k`, each component in [−L/2, L/2) (so ≈ [0, w_k] up to rounding).
     pub fn offset_in_cell(&self, slot: u32, k: usize, x: DVec3) -> DVec3 {
-        let own = self.level_of[slot as usize] as usize;
-        let c = self.coarse(own, self.cell_of[slot as usize], k);
+        let own = self.place[slot as usize].level as usize;
+        let c = self.coarse(own, self.place[slot as usize].cell, k);
         let w = self.levels[k].width;
         let side = 2.0 * self.half_width;
         let inv_side = 1.0 / side;
@@ -422,7 +433,7 @@ impl CellGrid {
         alive: impl Iterator<Item = u32>,
         mut visit: impl FnMut(u32, Partner),
     ) {
-        let own = self.level_of[slot as usize] as usize;
+        let own = self.place[slot as usize].level as usize;
         if own == self.levels.len() {
             for j in alive {
                 if j != slot {
@@ -431,7 +442,7 @@ impl CellGrid {
             }
             return;
         }
-        let c = self.cell_of[slot as usize];
+        let c = self.place[slot as usize].cell;
         for k in own..self.levels.len() {
             let level = &self.levels[k];
             if k != own && level.natives == 0 {
