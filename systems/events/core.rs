@@ -36,6 +36,25 @@ fn newly_overlapping(d: DVec3, u: DVec3, reach: f64, since: f64) -> bool {
 /// fraction of the box side relative to the owner.
 const REFRESH_FRACTION: f64 = 0.25;
 
+/// A touching pair whose closing speed is below this fraction of its relative speed
+/// counts as grazing, not approaching.
+const GRAZING: f64 = 1e-10;
+
+/// The exact time to contact (`time_to_contact`, Bannerman et al.'s stable form: an
+/// approaching overlapping pair meets "now"), except that a touching pair that only
+/// grazes — closing speed below 1e-10 of its relative speed — gets no event. The step
+/// that resolves a contact re-checks the approach with the synchronised positions; a
+/// pair this close to tangential could pass one test and fail the other by rounding and
+/// be handed back forever with zero-length steps.
+#[inline]
+fn contact_time(d: DVec3, u: DVec3, reach: f64) -> Option<f64> {
+    let t = time_to_contact(d, u, reach)?;
+    if t == 0.0 && d.dot(u) > -GRAZING * d.length() * u.length() {
+        return None;
+    }
+    Some(t)
+}
+
 /// One body's trajectory as the event core sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct Trajectory {
@@ -314,7 +333,7 @@ impl EventCore {
                         let d = cells * w + rel_other - rel_me;
                         tests += 1;
                         deep += newly_overlapping(d, u, reach, since) as u64;
-                        time_to_contact(d, u, reach)
+                        contact_time(d, u, reach)
                     }
                     Partner::AnyImage => {
                         fastest_any_image = fastest_any_image.max(u.length());
@@ -328,7 +347,7 @@ impl EventCore {
                         for image in IMAGES {
                             let d = d0 + side * image;
                             tests += 1;
-                            if let Some(t) = time_to_contact(d, u, reach) {
+                            if let Some(t) = contact_time(d, u, reach) {
                                 deep += newly_overlapping(d, u, reach, since) as u64;
                                 earliest = Some(earliest.map_or(t, |e: f64| e.min(t)));
                             }
