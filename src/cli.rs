@@ -10,10 +10,14 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod clamp_watch;
 mod inverse;
 
 use agglo::output::{write_final_state, write_summary};
 use agglo::prelude::*;
+use agglo::scenario::Stepping;
+use agglo::schedule::Pipeline;
+use clamp_watch::ClampWatch;
 
 /// Particle agglomeration in thermochemically reacting granular flows.
 #[derive(Parser, Debug)]
@@ -27,7 +31,8 @@ pub struct Cli {
 pub enum Command {
     /// Run a scenario to its end time.
     Run(RunArgs),
-    /// Check a scenario (or inverse-problem) file and print what it describes.
+    /// Check a scenario (or inverse-problem) file and print what it describes, with the
+    /// pipeline it will run and why the other systems are left out.
     Validate {
         /// Scenario file (JSON).
         scenario: PathBuf,
@@ -41,6 +46,15 @@ pub enum Command {
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
+    },
+    /// Write a Foxglove layout fitted to a recording's box (camera distance and near plane
+    /// from its half-width D).
+    Layout {
+        /// Recording (MCAP) written by `agglo run --out`.
+        file: PathBuf,
+        /// Where to write the layout [default: next to the recording, RUN.layout.json].
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
     },
     /// Numerical studies: speed against accuracy, and where methods fail.
     #[command(subcommand)]
@@ -93,7 +107,8 @@ pub struct RunArgs {
     /// ignored (pass --out / --final-state / --summary).
     #[arg(long, value_name = "RECORDING")]
     pub from: Option<PathBuf>,
-    /// Record the run to this MCAP file for Foxglove (overrides `output.mcap`).
+    /// Record the run to this MCAP file for Foxglove (overrides `output.mcap`); a
+    /// Foxglove layout fitted to the box is written beside it (RUN.layout.json).
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
     /// Override the scenario's seed.
@@ -105,7 +120,7 @@ pub struct RunArgs {
     /// Write one CSV row per body at the end here.
     #[arg(long)]
     pub final_state: Option<PathBuf>,
-    /// No progress bar and no end-of-run report.
+    /// No progress bar and no end-of-run report (warnings still go to stderr).
     #[arg(long, short)]
     pub quiet: bool,
 }
@@ -133,6 +148,7 @@ pub fn main() -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::Layout { file, out } => layout(&file, out),
         Command::Optimize(args) => inverse::optimize(args),
         Command::Scan(args) => inverse::scan(args),
     }
@@ -165,6 +181,43 @@ fn validate(path: &Path) -> anyhow::Result<()> {
         s.domain.half_width,
         s.time.end,
         s.seed
+    );
+    let pipeline = Pipeline::of_scenario(&s).context("building the scene's pipeline")?;
+    print!("{}", pipeline_text(&pipeline));
+    Ok(())
+}
+
+/// The pipeline as `validate` prints it: the core and why, the systems in order, and
+/// why each other system is left out.
+fn pipeline_text(p: &Pipeline) -> String {
+    let mut text = format!("core: {} — {}\n", p.core, p.core_reason);
+    text += &format!("pipeline ({} systems, in order):\n", p.systems.len());
+    for (i, system) in p.systems.iter().enumerate() {
+        text += &format!("  {:>2}. {system}\n", i + 1);
+    }
+    if p.left_out.is_empty() {
+        text += "left out: nothing\n";
+    } else {
+        text += "left out:\n";
+        for line in &p.left_out {
+            text += &format!("  - {line}\n");
+        }
+    }
+    text
+}
+
+/// `agglo layout`: a layout fitted to an existing recording's box.
+fn layout(recording: &Path, out: Option<PathBuf>) -> anyhow::Result<()> {
+    use agglo::record::layout::{box_half_width, layout_path_for, write_fitted_layout};
+    let d = box_half_width(recording)?;
+    let path = out.unwrap_or_else(|| layout_path_for(recording));
+    let fit = write_fitted_layout(&path, d)?;
+    println!(
+        "wrote {} (D = {d:e} m: camera distance {:e} m, near plane {:e} m); \
+         in Foxglove: Layouts → Import from file",
+        path.display(),
+        fit.distance,
+        fit.near
     );
     Ok(())
 }
@@ -215,6 +268,10 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         // A second handler cannot be installed (e.g. in tests); the run still works without one.
         let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
     }
+    let layout_path = match &mcap_path {
+        Some(path) => Some(write_layout_beside(path, &scenario)?),
+        None => None,
+    };
     // Created after the Ctrl-C handler: once the file exists, an interrupt finalises it.
     let mut recorder = match &mcap_path {
         Some(path) => {
@@ -223,6 +280,7 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
+    let mut clamp_watch = clamping_floor(&scenario).map(|dt_min| (ClampWatch::new(0, 0), dt_min));
     let mut record_error: Option<anyhow::Error> = None;
     let show_progress = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
     let bar = if show_progress {
@@ -246,6 +304,21 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
                 bar.set_message(format!("step {} t = {:.3e} s", c.step, c.time));
             }
         }
+        if let Some((watch, dt_min)) = clamp_watch.as_mut() {
+            let c = s.clock();
+            if let Some(window) = watch.observe(
+                c.step,
+                s.counters().clamped_steps,
+                std::time::Instant::now(),
+            ) {
+                let warning = clamping_warning(s.scenario(), *dt_min, c.time, window);
+                // Above the progress bar, which also draws on stderr.
+                match &bar {
+                    Some(bar) => bar.suspend(|| eprintln!("{warning}")),
+                    None => eprintln!("{warning}"),
+                }
+            }
+        }
         if let Some(r) = recorder.as_mut()
             && let Err(e) = r.observe(s)
         {
@@ -267,12 +340,16 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         let path = r.path().to_path_buf();
         match r.finish(&sim, &outcome) {
             Ok(rep) if !args.quiet => println!(
-                "recorded {} snapshots ({} deletions, {} events) to {} ({:.2} MB)",
+                "recorded {} snapshots ({} deletions, {} events) to {} ({:.2} MB); \
+                 Foxglove layout fitted to its box: {}",
                 rep.snapshots,
                 rep.deletions,
                 rep.events,
                 path.display(),
-                rep.bytes as f64 / 1e6
+                rep.bytes as f64 / 1e6,
+                layout_path
+                    .as_deref()
+                    .map_or_else(|| "none".into(), |p| p.display().to_string())
             ),
             Ok(_) => {}
             Err(e) => {
@@ -297,6 +374,43 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     }
     outcome.context("running the scenario")?;
     Ok(())
+}
+
+/// Write the Foxglove layout fitted to the scene's box beside the recording `mcap`.
+fn write_layout_beside(mcap: &Path, scenario: &Scenario) -> anyhow::Result<PathBuf> {
+    use agglo::record::layout::{layout_path_for, write_fitted_layout};
+    let path = layout_path_for(mcap);
+    write_fitted_layout(&path, scenario.domain.half_width)?;
+    Ok(path)
+}
+
+/// Δt_min, if the scene can clamp at it: only the stepped core with adaptive steps does
+/// (the event core lands on every contact; fixed steps have no lower bound).
+fn clamping_floor(s: &Scenario) -> Option<f64> {
+    match s.time.stepping {
+        Stepping::Adaptive { dt_min, .. } if !s.uses_event_core() => Some(dt_min),
+        _ => None,
+    }
+}
+
+/// The warning printed (even under `--quiet`: it is about a run going wrong, and goes
+/// to stderr, which `--quiet` does not silence) when most steps of a window were clamped.
+fn clamping_warning(
+    s: &Scenario,
+    dt_min: f64,
+    t: f64,
+    window: clamp_watch::ClampedWindow,
+) -> String {
+    format!(
+        "warning: at t = {t:.4e} s, {} of the last {} steps were clamped at Δt_min = {dt_min:e} s \
+         although a contact was due sooner: contacts are resolved late, and the run advances \
+         about Δt_min per step (T/Δt_min = {:.1e} steps, time.max_steps = {}); \
+         lower time.stepping.adaptive.dt_min",
+        window.clamped,
+        window.steps,
+        s.time.end / dt_min,
+        s.time.max_steps
+    )
 }
 
 fn print_report(s: &Summary) {

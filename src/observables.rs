@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::components::BodyState;
 use crate::resources::{Counters, EnergyLedger};
-use crate::schedule::Simulation;
+use crate::schedule::{Pipeline, Simulation};
 
 /// Target ratio r_t of P02's cost (b_f = 2 b0).
 pub const P02_TARGET_RATIO: f64 = 2.0;
@@ -120,6 +120,10 @@ pub struct Summary {
     pub invariant_violations: Vec<String>,
     /// Plugins built into the run, in order.
     pub plugins: Vec<String>,
+    /// The core, the systems in order and why the others were left out (as `agglo
+    /// validate` prints them).
+    #[serde(default)]
+    pub pipeline: Pipeline,
     /// Wall-clock seconds spent stepping.
     pub wall_seconds: f64,
     /// The event core's own counts (absent on the stepped core).
@@ -162,6 +166,7 @@ impl Summary {
             max_energy_error: report.max_energy_error,
             invariant_violations: report.violations,
             plugins: sim.plugins().iter().map(|s| s.to_string()).collect(),
+            pipeline: sim.pipeline().clone(),
             wall_seconds: sim.wall_seconds(),
             events: sim
                 .world()

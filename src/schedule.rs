@@ -14,6 +14,7 @@ use std::ops::ControlFlow;
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleThreadedExecutor};
 use bevy_ecs::system::ScheduleSystem;
+use serde::{Deserialize, Serialize};
 
 use crate::cloud::generate_cloud;
 use crate::components::{
@@ -96,6 +97,44 @@ pub trait SimPlugin {
     fn build(&self, sim: &mut SimBuilder);
 }
 
+/// What a scene runs: its core, its systems in order, and why each system the scene
+/// could have run was left out (docs/model.md §3: a scene runs only what it needs).
+/// `agglo validate` prints it; the summary and the recording's metadata carry it.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Pipeline {
+    /// `event` or `stepped` (docs/model.md §4).
+    pub core: String,
+    /// Why that core, in the scenario's terms (said by the plugin that builds it).
+    pub core_reason: String,
+    /// The systems in execution order, as [`Simulation::systems`] lists them.
+    pub systems: Vec<String>,
+    /// One line per system left out: which and why, said by the plugin that decided,
+    /// e.g. `fragmentation off: γ = ∞ (material.gamma = null)`.
+    pub left_out: Vec<String>,
+}
+
+impl Pipeline {
+    /// The pipeline [`Simulation::new`] would build for `scenario`, without generating
+    /// its cloud: the plugins decide from the scenario, never from the bodies, so a
+    /// one-body copy of the scene gets the same systems at no cost for any N.
+    pub fn of_scenario(scenario: &Scenario) -> Result<Self, SimError> {
+        scenario.validate()?;
+        let sim = Simulation::new(&one_body_copy(scenario))?;
+        Ok(sim.pipeline)
+    }
+}
+
+/// `scenario` with a single body of the same primary radius (the first placed body,
+/// if the scene places its bodies): what it needs to build its pipeline.
+fn one_body_copy(scenario: &Scenario) -> Scenario {
+    let mut one = scenario.clone();
+    one.cloud.radius = Some(scenario.primary_radius());
+    one.cloud.size_ratio = None;
+    one.cloud.count = 1;
+    one.cloud.bodies.truncate(1);
+    one
+}
+
 /// A world and schedule under construction.
 pub struct SimBuilder {
     world: World,
@@ -104,6 +143,8 @@ pub struct SimBuilder {
     runs_forces: bool,
     scenario: Scenario,
     plugins: Vec<&'static str>,
+    core_reason: String,
+    left_out: Vec<String>,
 }
 
 impl SimBuilder {
@@ -184,6 +225,8 @@ impl SimBuilder {
             runs_forces: false,
             scenario: scenario.clone(),
             plugins: Vec::new(),
+            core_reason: String::new(),
+            left_out: Vec::new(),
         })
     }
 
@@ -245,6 +288,20 @@ impl SimBuilder {
         self
     }
 
+    /// Say why a system this scene could run is left out, e.g. `cooling off: ε = hc = 0
+    /// (material.epsilon, material.hc)`: the plugin that decides says why
+    /// (listed by [`Simulation::pipeline`]).
+    pub fn leave_out(&mut self, what_and_why: impl Into<String>) -> &mut Self {
+        self.left_out.push(what_and_why.into());
+        self
+    }
+
+    /// Say why the scene runs on its core (the plugin that builds the core says it).
+    pub fn explain_core(&mut self, why: impl Into<String>) -> &mut Self {
+        self.core_reason = why.into();
+        self
+    }
+
     /// Build one plugin into the simulation.
     pub fn add_plugin(&mut self, plugin: &dyn SimPlugin) -> &mut Self {
         plugin.build(self);
@@ -290,13 +347,24 @@ impl SimBuilder {
             }
             self.world.add_schedule(forces);
         }
+        let pipeline = Pipeline {
+            core: if self.scenario.uses_event_core() {
+                "event"
+            } else {
+                "stepped"
+            }
+            .into(),
+            core_reason: self.core_reason,
+            systems,
+            left_out: self.left_out,
+        };
         Ok(Simulation {
             world: self.world,
             schedule: self.schedule,
             has_forces,
             scenario: self.scenario,
             plugins: self.plugins,
-            systems,
+            pipeline,
             wall_seconds: 0.0,
         })
     }
@@ -329,7 +397,7 @@ pub struct Simulation {
     has_forces: bool,
     scenario: Scenario,
     plugins: Vec<&'static str>,
-    systems: Vec<String>,
+    pipeline: Pipeline,
     wall_seconds: f64,
 }
 
@@ -356,7 +424,11 @@ impl Simulation {
     /// The systems scheduled, in execution order (`module::function`): a scene runs only
     /// the physics it needs, and this says which.
     pub fn systems(&self) -> &[String] {
-        &self.systems
+        &self.pipeline.systems
+    }
+    /// The core, the systems and why the others were left out.
+    pub fn pipeline(&self) -> &Pipeline {
+        &self.pipeline
     }
     pub fn world(&self) -> &World {
         &self.world

@@ -3,7 +3,9 @@
 //!
 //! Each plugin looks at the scenario and adds its systems only if the scene needs
 //! them (docs/model.md §3, last line): no cooling system when ε = hc = 0 or cooling is
-//! `off`, no fragmentation when γ is ∞, no diagnostics when switched off.
+//! `off`, no fragmentation when γ is ∞, no diagnostics when switched off. The plugin
+//! that leaves a system out says why ([`SimBuilder::leave_out`]), so `agglo validate`,
+//! the summary and the recording can show it.
 //! Only `src/schedule.rs` imports from here; the order lives there.
 
 pub mod bodies;
@@ -23,8 +25,9 @@ pub mod time_step;
 use bevy_ecs::prelude::*;
 
 use crate::components::{Mass, Particle, Temperature, Velocity};
+use crate::error::ScenarioError;
 use crate::resources::MaterialConstants;
-use crate::scenario::{CoolingMethod, Core};
+use crate::scenario::{CoolingMethod, Core, Scenario};
 use crate::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 /// Contact detection (stage 1) and step-size selection (stage 5): the event core
@@ -35,6 +38,8 @@ impl SimPlugin for ContactPlugin {
         "contact"
     }
     fn build(&self, sim: &mut SimBuilder) {
+        let why = core_reason(sim.scenario());
+        sim.explain_core(why);
         if sim.scenario().uses_event_core() {
             let brute_force = sim.scenario().time.core == Core::EventsBruteForce;
             let core = events::build_core(sim.world_mut(), brute_force);
@@ -49,6 +54,38 @@ impl SimPlugin for ContactPlugin {
             .add_systems(StepSystems::Contact, contact::detect_contacts)
             .add_systems(StepSystems::TimeStep, time_step::choose_time_step);
     }
+}
+
+/// Why the scene runs on the core it runs on, in the scenario's terms.
+fn core_reason(s: &Scenario) -> String {
+    match s.time.core {
+        Core::Events => "time.core = \"events\"".into(),
+        Core::EventsBruteForce => {
+            "time.core = \"events_brute_force\" (the O(N²) reference predictor)".into()
+        }
+        Core::Stepped => "time.core = \"stepped\"".into(),
+        Core::Auto if s.uses_event_core() => "time.core = \"auto\" and the scene allows it \
+             (adaptive stepping with step_factor = 1, contact rule \"all\", cooling not \"explicit\")"
+            .into(),
+        Core::Auto => format!("time.core = \"auto\", and {}", event_core_obstacle(s)),
+    }
+}
+
+/// What keeps `s` off the event core, in the words of the scenario's own check:
+/// asking for the event core explicitly makes `validate` name the obstacle under
+/// `time.core` (one source for the rule, so the two cannot drift apart).
+fn event_core_obstacle(s: &Scenario) -> String {
+    let mut probe = s.clone();
+    probe.time.core = Core::Events;
+    let issues = match probe.validate() {
+        Err(ScenarioError::Invalid(issues)) => issues,
+        _ => Vec::new(),
+    };
+    issues
+        .into_iter()
+        .find(|issue| issue.path == "time.core")
+        .map(|issue| issue.message)
+        .unwrap_or_else(|| "the scene does not fit the event core".into())
 }
 
 /// The impact / heat solve (stage 2).
@@ -71,6 +108,8 @@ impl SimPlugin for MergePlugin {
     fn build(&self, sim: &mut SimBuilder) {
         if sim.scenario().physics.merging {
             sim.add_systems(StepSystems::Merge, merge::merge_bonded);
+        } else {
+            sim.leave_out("merging off: physics.merging = false");
         }
     }
 }
@@ -82,10 +121,21 @@ impl SimPlugin for FragmentPlugin {
         "fragment"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        let s = sim.scenario();
-        if s.physics.fragmentation && s.material.gamma.is_some() {
-            sim.add_systems(StepSystems::Fragment, fragment::fragment_bodies);
-        }
+        match fragmentation_off(sim.scenario()) {
+            Some(why) => sim.leave_out(format!("fragmentation off: {why}")),
+            None => sim.add_systems(StepSystems::Fragment, fragment::fragment_bodies),
+        };
+    }
+}
+
+/// Why the scene has no fragmentation, if it has none.
+fn fragmentation_off(s: &Scenario) -> Option<&'static str> {
+    if s.material.gamma.is_none() {
+        Some("γ = ∞ (material.gamma = null)")
+    } else if !s.physics.fragmentation {
+        Some("physics.fragmentation = false")
+    } else {
+        None
     }
 }
 
@@ -97,11 +147,25 @@ impl SimPlugin for CoolingPlugin {
         "cooling"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        let s = sim.scenario();
-        let cools = s.material.epsilon > 0.0 || s.material.hc > 0.0;
-        if cools && s.physics.cooling != CoolingMethod::Off && !s.uses_event_core() {
-            sim.add_systems(StepSystems::Cooling, cooling::cool_bodies);
-        }
+        match no_cooling_system(sim.scenario()) {
+            Some(why) => sim.leave_out(why),
+            None => sim.add_systems(StepSystems::Cooling, cooling::cool_bodies),
+        };
+    }
+}
+
+/// Why the scene schedules no cooling system, if it schedules none.
+fn no_cooling_system(s: &Scenario) -> Option<&'static str> {
+    if s.physics.cooling == CoolingMethod::Off {
+        Some("cooling off: physics.cooling = \"off\"")
+    } else if s.material.epsilon == 0.0 && s.material.hc == 0.0 {
+        Some("cooling off: ε = hc = 0 (material.epsilon, material.hc)")
+    } else if s.uses_event_core() {
+        Some(
+            "cooling: done lazily by the event core (each body cooled exactly over its interval when read)",
+        )
+    } else {
+        None
     }
 }
 
@@ -114,6 +178,9 @@ impl SimPlugin for MotionPlugin {
     }
     fn build(&self, sim: &mut SimBuilder) {
         if sim.scenario().uses_event_core() {
+            sim.leave_out(
+                "drift, boundary: done lazily by the event core (each body moved and wrapped when read)",
+            );
             return;
         }
         sim.add_systems(StepSystems::Drift, drift::drift)
@@ -140,6 +207,8 @@ impl SimPlugin for DiagnosticsPlugin {
                 .add_systems(StepSystems::Diagnostics, diagnostics::check_step_totals);
         } else if d.invariants {
             sim.add_systems(StepSystems::Diagnostics, diagnostics::check_invariants);
+        } else {
+            sim.leave_out("diagnostics off: diagnostics.invariants = false");
         }
     }
 }

@@ -503,3 +503,62 @@ fn recovered_snapshots(buf: &[u8]) -> usize {
     }
     recovered
 }
+
+#[test]
+fn recording_metadata_carries_the_pipeline_and_the_box() {
+    let dir = tempfile::tempdir().unwrap();
+    // The stepped core without fragmentation: a pipeline that differs from the default.
+    let scenario = scenario_file(dir.path(), "stepped", |v| {
+        v["time"]["core"] = "stepped".into();
+        v["material"]["gamma"] = serde_json::Value::Null;
+    });
+    let mcap_path = dir.path().join("run.mcap");
+    let summary_path = dir.path().join("summary.json");
+    let out = agglo(&[
+        "run",
+        s(&scenario),
+        "--out",
+        s(&mcap_path),
+        "--summary",
+        s(&summary_path),
+        "-q",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let buf = std::fs::read(&mcap_path).unwrap();
+    let summary = mcap::Summary::read(&buf).unwrap().expect("summary section");
+    let run_meta = summary
+        .metadata_indexes
+        .iter()
+        .find(|i| i.name == "agglo")
+        .map(|i| mcap::read::metadata(&buf, i).unwrap().metadata)
+        .expect("run metadata");
+    let recorded: serde_json::Value = serde_json::from_str(&run_meta["pipeline"]).unwrap();
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary_path).unwrap()).unwrap();
+    assert_eq!(recorded, written["pipeline"]);
+    assert_eq!(recorded["core"], "stepped");
+    assert_eq!(
+        recorded["left_out"][0],
+        "fragmentation off: γ = ∞ (material.gamma = null)"
+    );
+    assert!(
+        recorded["systems"]
+            .as_array()
+            .unwrap()
+            .contains(&"drift::drift".into())
+    );
+    assert_eq!(run_meta["box_half_width_m"].parse::<f64>().unwrap(), 5e-3);
+
+    // `agglo inspect` shows both.
+    let text = String::from_utf8(agglo(&["inspect", s(&mcap_path)]).stdout).unwrap();
+    assert!(text.contains("box half-width D = 5e-3 m"), "{text}");
+    assert!(
+        text.contains("stepped core: contact::detect_contacts →"),
+        "{text}"
+    );
+    assert!(text.contains("fragmentation off: γ = ∞"), "{text}");
+}

@@ -16,7 +16,8 @@ use plotters::prelude::*;
 type Series = BTreeMap<(String, String), Vec<(f64, f64, f64)>>;
 
 fn read(csv: &Path) -> anyhow::Result<Series> {
-    let text = std::fs::read_to_string(csv).with_context(|| format!("reading {}", csv.display()))?;
+    let text =
+        std::fs::read_to_string(csv).with_context(|| format!("reading {}", csv.display()))?;
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().context("empty CSV")?.split(',').collect();
     let col = |name: &str| {
@@ -110,9 +111,7 @@ impl PeerChart {
                     .draw_series(DashedLineSeries::new(line.clone(), 6, 4, stroke))
                     .map_err(err)?
                     .label(label)
-                    .legend(move |(x, y)| {
-                        PathElement::new([(x, y), (x + 6, y)], stroke)
-                    });
+                    .legend(move |(x, y)| PathElement::new([(x, y), (x + 6, y)], stroke));
             }
             chart
                 .draw_series(line.into_iter().map(|p| Circle::new(p, 4, colour.filled())))
@@ -149,7 +148,9 @@ impl Figure for PeerChart {
 
 fn main() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);
-    let csv = args.next().unwrap_or_else(|| "benches/peers/results.csv".into());
+    let csv = args
+        .next()
+        .unwrap_or_else(|| "benches/peers/results.csv".into());
     let stem = args.next().unwrap_or_else(|| "docs/peers".into());
     let series = read(Path::new(&csv))?;
     let stem = Path::new(&stem);

@@ -13,8 +13,12 @@ use mcap::read::{ChunkReader, LinearReader, Options};
 use mcap::records::Record;
 use serde::Serialize;
 
-use super::{RESULT_METADATA, RUN_METADATA, SCENARIO_ATTACHMENT, STATS_TOPIC};
+use super::{
+    BOX_HALF_WIDTH_KEY, PIPELINE_KEY, RESULT_METADATA, RUN_METADATA, SCENARIO_ATTACHMENT,
+    STATS_TOPIC,
+};
 use crate::scenario::Scenario;
+use crate::schedule::Pipeline;
 
 /// One channel of a recording.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -52,6 +56,11 @@ pub struct Inspection {
     pub final_stats: Option<serde_json::Value>,
     /// Whether the scenario attachment is present.
     pub has_scenario: bool,
+    /// Box half-width D [m]: from the metadata, else from the scenario attachment
+    /// (recordings made before D went into the metadata).
+    pub box_half_width: Option<f64>,
+    /// The pipeline the run ran (absent in recordings made before it was recorded).
+    pub pipeline: Option<Pipeline>,
 }
 
 /// Scan the recording at `path`.
@@ -69,6 +78,17 @@ pub fn inspect(path: &Path) -> anyhow::Result<Inspection> {
         .scenario_json
         .as_deref()
         .and_then(|s| serde_json::from_slice(s).ok());
+    let box_half_width = meta
+        .remove(BOX_HALF_WIDTH_KEY)
+        .and_then(|d| d.parse::<f64>().ok())
+        .or_else(|| {
+            scenario_value
+                .as_ref()
+                .and_then(|v| v.get("box")?.get("half_width")?.as_f64())
+        });
+    let pipeline = meta
+        .remove(PIPELINE_KEY)
+        .and_then(|p| serde_json::from_str::<Pipeline>(&p).ok());
     let channels: Vec<ChannelInfo> = scan.channels.into_values().collect();
     let stats_time = |v: &Option<serde_json::Value>| {
         v.as_ref()
@@ -107,6 +127,8 @@ pub fn inspect(path: &Path) -> anyhow::Result<Inspection> {
         result: scan.metadata.remove(RESULT_METADATA),
         final_stats: scan.last_stats,
         has_scenario: scan.scenario_json.is_some(),
+        box_half_width,
+        pipeline,
     })
 }
 
@@ -302,6 +324,15 @@ impl Inspection {
             );
         } else {
             let _ = writeln!(s, "  outcome: unknown (no result metadata)");
+        }
+        if let Some(d) = self.box_half_width {
+            let _ = writeln!(s, "  box half-width D = {d:e} m");
+        }
+        if let Some(p) = &self.pipeline {
+            let _ = writeln!(s, "  {} core: {}", p.core, p.systems.join(" → "));
+            for line in &p.left_out {
+                let _ = writeln!(s, "    {line}");
+            }
         }
         let _ = writeln!(s, "  channels:");
         for c in &self.channels {

@@ -11,7 +11,8 @@
 //!
 //! plus the scenario actually run (seed applied) as the attachment
 //! [`SCENARIO_ATTACHMENT`] and metadata records [`RUN_METADATA`] (engine version,
-//! seed, command line, time scale) and [`RESULT_METADATA`] (outcome, written last).
+//! seed, command line, time scale, box half-width D, the pipeline as JSON) and
+//! [`RESULT_METADATA`] (outcome, written last).
 //!
 //! **Time.** A P04 run lasts 10 ms of simulated time; Foxglove replays log time in
 //! real time. So the log time of every message is simulated time × a playback
@@ -24,9 +25,12 @@
 //! to red at 10³ θ_lo and above.
 //!
 //! The writer lives in [`writer`], the reader behind `agglo inspect` and
-//! `agglo run --from` in [`inspect`].
+//! `agglo run --from` in [`inspect`], and the Foxglove layout fitted to a recording's
+//! box (`agglo layout`, and `RUN.layout.json` next to every `agglo run --out`) in
+//! [`layout`].
 
 pub mod inspect;
+pub mod layout;
 mod stats;
 pub mod writer;
 
@@ -48,6 +52,10 @@ pub const EVENTS_TOPIC: &str = "/events";
 pub const SCENARIO_ATTACHMENT: &str = "scenario.json";
 /// Name of the metadata record written at the start.
 pub const RUN_METADATA: &str = "agglo";
+/// Key of the box half-width D [m] in [`RUN_METADATA`] (what a fitted layout needs).
+pub const BOX_HALF_WIDTH_KEY: &str = "box_half_width_m";
+/// Key of the pipeline (JSON of [`crate::schedule::Pipeline`]) in [`RUN_METADATA`].
+pub const PIPELINE_KEY: &str = "pipeline";
 /// Name of the metadata record written when the recording is finalised.
 pub const RESULT_METADATA: &str = "agglo.result";
 /// Frame of every scene entity.

@@ -25,6 +25,10 @@ pub struct Stats {
     pub mean_primaries: f64,
     /// Σ ½ m v² [J].
     pub kinetic_energy: f64,
+    /// Kinetic energy over its value in the first snapshot (0 if that was 0): the
+    /// fraction left, plottable on one scale whatever the grain size (P02's grains carry
+    /// ~1e-11 J, P04's ~100 J).
+    pub kinetic_energy_over_initial: f64,
     /// Σ m C θ [J].
     pub thermal_energy: f64,
     /// Mean temperature [K].
@@ -46,8 +50,9 @@ pub struct Stats {
 }
 
 impl Stats {
-    /// From a run's summary and the last step size.
-    pub fn new(summary: &Summary, dt: f64) -> Self {
+    /// From a run's summary, the last step size and the kinetic energy of the first
+    /// snapshot [J].
+    pub fn new(summary: &Summary, dt: f64, initial_kinetic_energy: f64) -> Self {
         let c = &summary.counters;
         let g = &summary.growth;
         Self {
@@ -59,6 +64,11 @@ impl Stats {
             b_f_over_b_star: g.b_f / g.b_star,
             mean_primaries: summary.mean_primaries,
             kinetic_energy: summary.kinetic_energy,
+            kinetic_energy_over_initial: if initial_kinetic_energy > 0.0 {
+                summary.kinetic_energy / initial_kinetic_energy
+            } else {
+                0.0
+            },
             thermal_energy: summary.thermal_energy,
             mean_temperature: summary.mean_temperature,
             max_temperature: summary.max_temperature,

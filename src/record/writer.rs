@@ -25,8 +25,8 @@ use foxglove::schemas::{
 use mcap::records::{MessageHeader, Metadata};
 
 use super::{
-    BOX_TOPIC, ColourScale, EVENTS_TOPIC, FRAME_ID, PARTICLES_TOPIC, RESULT_METADATA, RUN_METADATA,
-    SCENARIO_ATTACHMENT, STATS_TOPIC, Sampling, Stats,
+    BOX_HALF_WIDTH_KEY, BOX_TOPIC, ColourScale, EVENTS_TOPIC, FRAME_ID, PARTICLES_TOPIC,
+    PIPELINE_KEY, RESULT_METADATA, RUN_METADATA, SCENARIO_ATTACHMENT, STATS_TOPIC, Sampling, Stats,
 };
 use crate::components::BodyState;
 use crate::error::SimError;
@@ -92,6 +92,8 @@ pub struct Recorder {
     /// Ids shown by the last snapshot, sorted.
     shown: Vec<u64>,
     counters: Counters,
+    /// Kinetic energy of the first snapshot [J] (`/stats.kinetic_energy_over_initial`).
+    initial_kinetic_energy: Option<f64>,
     pending: Pending,
     violations_reported: usize,
     report: RecordingReport,
@@ -129,6 +131,14 @@ impl Recorder {
         meta.insert("seed".into(), scenario.seed.to_string());
         meta.insert("command_line".into(), command_line.to_string());
         meta.insert("time_end_s".into(), format!("{:?}", scenario.time.end));
+        meta.insert(
+            BOX_HALF_WIDTH_KEY.into(),
+            format!("{:?}", scenario.domain.half_width),
+        );
+        meta.insert(
+            PIPELINE_KEY.into(),
+            serde_json::to_string(sim.pipeline()).context("the pipeline as JSON")?,
+        );
         meta.insert(
             "log_seconds_per_sim_second".into(),
             format!("{:?}", sampling.log_seconds_per_sim_second),
@@ -188,6 +198,7 @@ impl Recorder {
             last_step: clock.step,
             shown: Vec::new(),
             counters: sim.counters(),
+            initial_kinetic_energy: None,
             pending: Pending {
                 since: clock.time,
                 ..Default::default()
@@ -518,7 +529,10 @@ impl Recorder {
         self.shown = ids;
 
         let summary = Summary::new(sim, &bodies);
-        let stats = Stats::new(&summary, clock.dt);
+        let initial = *self
+            .initial_kinetic_energy
+            .get_or_insert(summary.kinetic_energy);
+        let stats = Stats::new(&summary, clock.dt, initial);
         self.buf.clear();
         serde_json::to_writer(&mut self.buf, &stats)?;
         let header = self.header(self.channels.stats, self.sampling.log_time(t));

@@ -1,0 +1,130 @@
+//! Says on stderr, while a run goes on, that the stepped core keeps clamping Δt at
+//! Δt_min (docs/model.md §4): such a run resolves contacts late and may crawl towards
+//! `time.max_steps`. The summary and the recording count clamped steps too, but only
+//! a message during the run reaches a user who is waiting for it.
+//!
+//! The run is cut into windows of [`WINDOW_STEPS`] steps; a window in which more than
+//! [`CLAMPED_FRACTION`] of the steps were clamped is reported, at most once every
+//! [`MIN_INTERVAL`] of wall time, so a long run writes a few lines, not thousands.
+
+use std::time::{Duration, Instant};
+
+/// Steps per window.
+pub const WINDOW_STEPS: u64 = 1000;
+/// Fraction of clamped steps in a window above which it is reported.
+pub const CLAMPED_FRACTION: f64 = 0.5;
+/// Least wall time between two warnings.
+pub const MIN_INTERVAL: Duration = Duration::from_secs(5);
+
+/// A window worth a warning: `clamped` of the last `steps` steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClampedWindow {
+    pub clamped: u64,
+    pub steps: u64,
+}
+
+/// Counts clamped steps window by window. See the module docs.
+#[derive(Debug, Clone)]
+pub struct ClampWatch {
+    window_start_step: u64,
+    window_start_clamped: u64,
+    last_warning: Option<Instant>,
+}
+
+impl ClampWatch {
+    /// A watch starting at `step` with `clamped` steps counted so far.
+    pub fn new(step: u64, clamped: u64) -> Self {
+        Self {
+            window_start_step: step,
+            window_start_clamped: clamped,
+            last_warning: None,
+        }
+    }
+
+    /// Call after every step with the step count and the `clamped_steps` counter;
+    /// returns the window to report, if one closes now and is worth a warning.
+    pub fn observe(&mut self, step: u64, clamped: u64, now: Instant) -> Option<ClampedWindow> {
+        let steps = step.saturating_sub(self.window_start_step);
+        if steps < WINDOW_STEPS {
+            return None;
+        }
+        let window = ClampedWindow {
+            clamped: clamped.saturating_sub(self.window_start_clamped),
+            steps,
+        };
+        self.window_start_step = step;
+        self.window_start_clamped = clamped;
+        let mostly_clamped = window.clamped as f64 > CLAMPED_FRACTION * steps as f64;
+        let quiet_long_enough = self
+            .last_warning
+            .is_none_or(|last| now.duration_since(last) >= MIN_INTERVAL);
+        if mostly_clamped && quiet_long_enough {
+            self.last_warning = Some(now);
+            Some(window)
+        } else {
+            None
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Steps `from..to`, each clamped if `clamped(step)`; the windows reported.
+    fn feed(
+        watch: &mut ClampWatch,
+        total: &mut u64,
+        steps: std::ops::Range<u64>,
+        clamped: impl Fn(u64) -> bool,
+        now: Instant,
+    ) -> Vec<ClampedWindow> {
+        let mut reported = Vec::new();
+        for step in steps {
+            if clamped(step) {
+                *total += 1;
+            }
+            reported.extend(watch.observe(step + 1, *total, now));
+        }
+        reported
+    }
+
+    #[test]
+    fn a_mostly_clamped_window_is_reported_once() {
+        let t0 = Instant::now();
+        let mut watch = ClampWatch::new(0, 0);
+        let mut total = 0;
+        // 3 of every 4 steps clamped: 750 of the first 1000.
+        let got = feed(&mut watch, &mut total, 0..1000, |s| s % 4 != 0, t0);
+        assert_eq!(
+            got,
+            vec![ClampedWindow {
+                clamped: 750,
+                steps: 1000
+            }]
+        );
+    }
+
+    #[test]
+    fn half_or_fewer_clamped_is_not_reported() {
+        let t0 = Instant::now();
+        let mut watch = ClampWatch::new(0, 0);
+        let mut total = 0;
+        let got = feed(&mut watch, &mut total, 0..5000, |s| s % 2 == 0, t0);
+        assert!(got.is_empty(), "{got:?}");
+    }
+
+    #[test]
+    fn warnings_wait_for_the_interval() {
+        let t0 = Instant::now();
+        let mut watch = ClampWatch::new(0, 0);
+        let mut total = 0;
+        // Three bad windows within the interval: one warning.
+        let got = feed(&mut watch, &mut total, 0..3000, |_| true, t0);
+        assert_eq!(got.len(), 1);
+        // After the interval, the next bad window is reported again.
+        let later = t0 + MIN_INTERVAL;
+        let got = feed(&mut watch, &mut total, 3000..4000, |_| true, later);
+        assert_eq!(got.len(), 1);
+    }
+}
