@@ -117,6 +117,12 @@ pub struct Summary {
     pub max_mass_error: f64,
     pub max_momentum_error: f64,
     pub max_energy_error: f64,
+    /// Worst error of the kinetic and of the thermal energy ledger, each relative to its
+    /// own scale (docs/model.md §10).
+    #[serde(default)]
+    pub max_kinetic_energy_error: f64,
+    #[serde(default)]
+    pub max_thermal_energy_error: f64,
     pub invariant_violations: Vec<String>,
     /// Plugins built into the run, in order.
     pub plugins: Vec<String>,
@@ -160,6 +166,8 @@ impl Summary {
                 .map(|b| b.temperature)
                 .fold(f64::MIN, f64::max),
             counters: sim.counters(),
+            max_kinetic_energy_error: report.max_kinetic_error,
+            max_thermal_energy_error: report.max_thermal_error,
             energy: sim.ledger(),
             max_mass_error: report.max_mass_error,
             max_momentum_error: report.max_momentum_error,

@@ -274,7 +274,10 @@ pub struct Counters {
     pub invariant_violations: u64,
 }
 
-/// Energy bookkeeping (docs/model.md §10): E = kinetic + Σ m C θ changes only by these.
+/// Energy bookkeeping (docs/model.md §10): E = kinetic + Σ m C θ changes only by these,
+/// and each of its two parts only by its own terms: Σ ½ m v² by the impact dissipation
+/// and the force work, Σ m C θ by the dissipation, reaction heat, fracture energy,
+/// cooling loss and external heat.
 #[derive(Resource, Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct EnergyLedger {
     /// Reaction heat added, Σ 2 α a_c over impacts [J].
@@ -285,6 +288,19 @@ pub struct EnergyLedger {
     pub cooling_loss: f64,
     /// Kinetic energy dissipated in impacts (turned into heat) [J].
     pub impact_dissipation: f64,
+    /// Work of external forces [J]: the kinetic energy extensions changed through
+    /// [`crate::systems::bodies::Bodies`], Σ (½ m |v_after|² − ½ m |v_before|²) over
+    /// every body they changed.
+    #[serde(default)]
+    pub force_work: f64,
+    /// Σ |½ m |v_after|² − ½ m |v_before|²| over the same changes [J]: the kinetic energy
+    /// forces moved in either direction, part of the kinetic ledger's scale (docs/model.md §10).
+    #[serde(default)]
+    pub force_work_turnover: f64,
+    /// Heat added by extensions through [`crate::systems::bodies::Bodies`],
+    /// Σ m C (θ_after − θ_before) over every body they changed [J] (negative if they cool).
+    #[serde(default)]
+    pub external_heat: f64,
 }
 
 /// Reference totals at t = 0 and the worst invariant errors seen.
@@ -299,8 +315,12 @@ pub struct InvariantReport {
     pub max_mass_error: f64,
     /// Worst |P − P0| / Σ m|v|.
     pub max_momentum_error: f64,
-    /// Worst |E − E0 − ledger| / (E0 + Σ|ledger terms|).
+    /// Worst |E − E0 − ledger| / (E0 + Σ|ledger terms|), E = kinetic + thermal.
     pub max_energy_error: f64,
+    /// Worst error of the kinetic ledger relative to its own scale (docs/model.md §10).
+    pub max_kinetic_error: f64,
+    /// Worst error of the thermal ledger relative to its own scale (docs/model.md §10).
+    pub max_thermal_error: f64,
     /// First few violations, human readable.
     pub violations: Vec<String>,
 }

@@ -10,7 +10,9 @@
 //! body it hands out is at the current time, and every body it changes is reported to
 //! the event core, which re-predicts its events. New physics therefore never sees
 //! stale state and never leaves stale predictions behind. With the stepped core every
-//! body is already current and the parameter only records what changed.
+//! body is already current and the parameter only records what changed. What a change
+//! does to the energy goes into the ledger (docs/model.md §10): the kinetic energy it
+//! makes as force work, the thermal energy as external heat.
 
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
@@ -134,7 +136,10 @@ type BodyData = (
 /// ```
 /// Position, velocity and temperature written in the closure are kept (hardness follows
 /// the temperature); mass, radius, primaries and id are read-only here — bodies change
-/// size only by merging and fragmentation.
+/// size only by merging and fragmentation. The change in a body's kinetic energy is
+/// tallied as force work ([`EnergyLedger::force_work`]), the change in its thermal
+/// energy as external heat ([`EnergyLedger::external_heat`]), so the invariant checks
+/// of docs/model.md §10 hold with any extension.
 #[derive(SystemParam)]
 pub struct Bodies<'w, 's> {
     query: Query<'w, 's, BodyData, With<Particle>>,
@@ -196,8 +201,8 @@ impl Bodies<'_, '_> {
         let Ok(row) = self.query.get_mut(entity) else {
             return false;
         };
-        let lost = apply(row, now, lazy, &clockwork, &mut self.events, change);
-        self.ledger.cooling_loss += lost;
+        let tally = apply(row, now, lazy, &clockwork, &mut self.events, change);
+        tally.enter(&mut self.ledger);
         true
     }
 
@@ -206,15 +211,52 @@ impl Bodies<'_, '_> {
         let now = self.clock.time;
         let lazy = self.lazy.0;
         let clockwork = Clockwork::new(&self.geometry, &self.material, &self.options);
-        let mut lost = 0.0;
+        let mut tally = Tally::default();
         for row in self.query.iter_mut() {
-            lost += apply(row, now, lazy, &clockwork, &mut self.events, &mut change);
+            tally.add(&apply(
+                row,
+                now,
+                lazy,
+                &clockwork,
+                &mut self.events,
+                &mut change,
+            ));
         }
-        self.ledger.cooling_loss += lost;
+        tally.enter(&mut self.ledger);
     }
 }
 
-/// Bring a body to `now` (lazy core), record its state before the change, apply it.
+/// What changing bodies through [`Bodies`] moved, for the energy ledger [J].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Tally {
+    /// Heat lost by cooling while the bodies were brought to the current time.
+    cooling_loss: f64,
+    /// Kinetic energy the change made, after − before (the force work).
+    work: f64,
+    /// |after − before| of the kinetic energy, summed per body.
+    work_turnover: f64,
+    /// Thermal energy the change made, m C (θ_after − θ_before).
+    heat: f64,
+}
+
+impl Tally {
+    fn add(&mut self, other: &Tally) {
+        self.cooling_loss += other.cooling_loss;
+        self.work += other.work;
+        self.work_turnover += other.work_turnover;
+        self.heat += other.heat;
+    }
+
+    fn enter(&self, ledger: &mut EnergyLedger) {
+        ledger.cooling_loss += self.cooling_loss;
+        ledger.force_work += self.work;
+        ledger.force_work_turnover += self.work_turnover;
+        ledger.external_heat += self.heat;
+    }
+}
+
+/// Bring a body to `now` (lazy core), record its state before the change, apply it;
+/// returns what it moved in the energy ledger.
 fn apply(
     row: <BodyData as bevy_ecs::query::QueryData>::Item<'_, '_>,
     now: f64,
@@ -222,18 +264,21 @@ fn apply(
     clockwork: &Clockwork,
     events: &mut StepEvents,
     change: impl FnOnce(&mut BodyState),
-) -> f64 {
+) -> Tally {
     let (entity, id, mut p, mut v, m, b, mut t, mut h, n, mut lt) = row;
     // The contribution before the body is brought forward: the heat it loses on the
     // way is tallied in the ledger and shows in its state after.
     let c = clockwork.material.heat_capacity;
     events.touch(entity, contribution(m.0, v.0, t.0, c));
-    let mut lost = 0.0;
+    let mut tally = Tally::default();
     if lazy {
-        lost = bring_to(
+        tally.cooling_loss = bring_to(
             now, clockwork, &mut p.0, v.0, m.0, b.0, &mut t.0, &mut h.0, &mut lt.0,
         );
     }
+    // Energies before and after, computed as `contribution` computes them, so the
+    // ledger moves by exactly the difference the diagnostics' running totals see.
+    let before = contribution(m.0, v.0, t.0, c);
     let mut state = BodyState {
         id: id.0,
         position: p.0,
@@ -251,5 +296,9 @@ fn apply(
         t.0 = state.temperature;
         h.0 = clockwork.material.hardness(t.0);
     }
-    lost
+    let after = contribution(m.0, v.0, t.0, c);
+    tally.work = after.kinetic - before.kinetic;
+    tally.work_turnover = tally.work.abs();
+    tally.heat = after.thermal - before.thermal;
+    tally
 }

@@ -154,8 +154,11 @@ impl CoolingLaw {
     /// (see the module documentation for the method). Monotone toward θ_eq, never past it;
     /// `theta` unchanged when dt = 0 or both coefficients are 0.
     pub fn advance(&self, theta: f64, dt: f64) -> f64 {
-        debug_assert!(theta >= 0.0, "temperature {theta} K");
-        let theta = theta.max(0.0);
+        // A negative or non-finite temperature is left as it is, for the invariant checks
+        // to report (a broken scheme upstream, e.g. explicit cooling), not hidden here.
+        if !(theta >= 0.0 && theta.is_finite()) {
+            return theta;
+        }
         let (kc, kr) = (self.k_convection, self.k_radiation);
         if !is_positive(dt) || (kc == 0.0 && kr == 0.0) {
             return theta;

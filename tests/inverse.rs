@@ -413,10 +413,14 @@ fn shipped_inverse_files_load_and_p02_end_time_matches_the_paper() {
 
 #[test]
 fn failed_sample_is_an_error_naming_the_string_or_a_penalty() {
-    // max_steps = 1 makes every sample fail with the step limit.
+    // max_steps = 1 makes every sample fail with the step limit. On adaptive steps: a
+    // scene whose fixed steps (T/Δt) exceed max_steps is refused when it is validated,
+    // so the limit is met while running only when the step count is not known ahead.
     let mut spec = tiny_problem(2).spec;
+    spec.end_time = agglo::inverse::problem::EndTimeRule::Scenario;
     if let agglo::inverse::problem::BaseScenario::Inline(v) = &mut spec.base {
         v["time"]["max_steps"] = 1.into();
+        v["time"]["stepping"] = serde_json::json!({ "adaptive": {} });
     }
     let p = InverseProblem::new(spec.clone(), Path::new(".")).unwrap();
     let tmp = tempfile::tempdir().unwrap();
@@ -425,9 +429,11 @@ fn failed_sample_is_an_error_naming_the_string_or_a_penalty() {
             generation: 0,
             sample: 0,
             genes,
+            source,
             ..
         }) => {
-            assert!(genes.contains("v0 = "))
+            assert!(genes.contains("v0 = "));
+            assert!(source.to_string().contains("max_steps"), "{source}");
         }
         other => panic!("expected a sample error, got {other:?}"),
     }
