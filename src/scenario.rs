@@ -501,9 +501,12 @@ impl Scenario {
 
     /// Why this scene cannot run on the event core, if it cannot.
     fn event_core_obstacle(&self) -> Option<&'static str> {
-        match self.time.stepping {
-            Stepping::Adaptive { step_factor, .. } if step_factor == 1.0 => {}
-            _ => return Some("adaptive stepping with step_factor = 1 (time.stepping)"),
+        let exact_steps = matches!(
+            self.time.stepping,
+            Stepping::Adaptive { step_factor, .. } if step_factor == 1.0
+        );
+        if !exact_steps {
+            return Some("adaptive stepping with step_factor = 1 (time.stepping)");
         }
         if self.physics.contact_rule != ContactRule::All {
             return Some("physics.contact_rule = \"all\"");

@@ -221,11 +221,9 @@ fn cited_sections(after_sign: &str) -> Result<Vec<u32>, ()> {
     let mut sections = vec![first];
     loop {
         // A sub-section number (".2") belongs to the section before it.
-        if let Some(r) = rest.strip_prefix('.') {
-            if let Some((_, r)) = leading_number(r) {
-                rest = r;
-                continue;
-            }
+        if let Some((_, r)) = rest.strip_prefix('.').and_then(leading_number) {
+            rest = r;
+            continue;
         }
         // A range end: "–6", "-6", "–§6".
         let range = rest

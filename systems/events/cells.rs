@@ -177,7 +177,7 @@ impl CellGrid {
                     native: Lists::default(),
                     natives: 0,
                 });
-                if n % 2 != 0 || n / 2 < 3 {
+                if !n.is_multiple_of(2) || n / 2 < 3 {
                     break;
                 }
                 n /= 2;

@@ -10,6 +10,7 @@
 //!   spawned, despawned bodies, from [`StepEvents`]), re-predicts those bodies only,
 //!   advances the calendar past crossings and stale events to the next real contact,
 //!   and sets Δt to reach it (bounded by Δt_max and T).
+//!
 //! Force systems act at the start of a step, over the interval just completed (see
 //! `SimBuilder::add_force_systems`): the bodies they change are filed with the rest.
 //!
