@@ -132,6 +132,15 @@ impl Calendar {
         }
     }
 
+    /// The event scheduled for `slot`, if any.
+    pub fn event_of(&self, slot: u32) -> Option<Event> {
+        let &at = self.position.get(slot as usize)?;
+        (at != ABSENT).then(|| Event {
+            time: self.heap[at as usize].time,
+            kind: self.kinds[slot as usize],
+        })
+    }
+
     /// The earliest event: (slot, event).
     pub fn peek(&self) -> Option<(u32, Event)> {
         self.heap.first().map(|e| {

@@ -280,6 +280,53 @@ impl CellGrid {
         }
     }
 
+    /// The same levels, with no body in them (for renumbering slots).
+    pub fn emptied(&self) -> Self {
+        let levels = self
+            .levels
+            .iter()
+            .map(|l| Level {
+                n: l.n,
+                width: l.width,
+                capacity: l.capacity,
+                active: false,
+                all: Lists::default(),
+                native: Lists::default(),
+                natives: 0,
+            })
+            .collect();
+        Self {
+            half_width: self.half_width,
+            levels,
+            whole: Lists::with_cells(1),
+            place: Vec::new(),
+        }
+    }
+
+    /// A slot's level and logical cell (None if absent).
+    pub fn place_of(&self, slot: u32) -> Option<(u8, [u16; 3])> {
+        let p = self.place.get(slot as usize)?;
+        (p.level != u8::MAX).then_some((p.level, p.cell))
+    }
+
+    /// Add a body at a known level and logical cell: renumbering keeps every body's
+    /// logical cell, which crossings may have moved ahead of its position at the current
+    /// time (they are processed up to the next contact).
+    pub fn insert_at(&mut self, slot: u32, level: u8, cell: [u16; 3]) {
+        self.ensure(slot);
+        let own = level as usize;
+        self.place[slot as usize] = Place { cell, level };
+        if own == self.levels.len() {
+            self.whole.push(0, slot);
+            return;
+        }
+        if !self.levels[own].active {
+            self.activate(own);
+        }
+        self.levels[own].natives += 1;
+        self.link(slot, own, cell, own);
+    }
+
     /// Add a body of radius `radius` at wrapped position `x`.
     pub fn insert(&mut self, slot: u32, radius: f64, x: DVec3) {
         self.ensure(slot);

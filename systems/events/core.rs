@@ -91,6 +91,9 @@ pub struct EventStats {
     pub pair_tests: u64,
     /// Approaching pairs found overlapping beyond rounding (missed contacts).
     pub deep_overlaps: u64,
+    /// Times the slots were renumbered in Z-order.
+    #[serde(default)]
+    pub renumberings: u64,
 }
 
 /// The event core.
@@ -110,7 +113,35 @@ pub struct EventCore {
     calendar: Calendar,
     /// Predict against every body through every image (the O(N²) reference).
     brute_force: bool,
+    /// Predictions made when the slots were last renumbered.
+    predictions_at_renumber: u64,
+    /// False to never renumber (tests show that renumbering changes nothing).
+    renumbering: bool,
     pub stats: EventStats,
+}
+
+/// Slots are renumbered in Z-order once this many predictions per live body have been
+/// made since the last time: an O(N log N) sort every O(N) events, O(log N) per event.
+const RENUMBER_EVERY: u64 = 8;
+
+/// Interleaved bits of a position in [−D, D)³ quantised to 1024 steps per axis: a
+/// Z-curve key, so that bodies close in space get slots close in memory.
+pub fn morton_key(position: DVec3, half_width: f64) -> u64 {
+    let quantise = |x: f64| {
+        let f = ((x + half_width) / (2.0 * half_width)).clamp(0.0, 1.0 - f64::EPSILON);
+        (f * 1024.0) as u64
+    };
+    let spread = |mut v: u64| {
+        // 10 bits → every third bit of 30.
+        v &= 0x3ff;
+        v = (v | (v << 16)) & 0x0300_00ff;
+        v = (v | (v << 8)) & 0x0300_f00f;
+        v = (v | (v << 4)) & 0x030c_30c3;
+        (v | (v << 2)) & 0x0924_9249
+    };
+    spread(quantise(position.x))
+        | (spread(quantise(position.y)) << 1)
+        | (spread(quantise(position.z)) << 2)
 }
 
 impl EventCore {
@@ -133,6 +164,8 @@ impl EventCore {
             grid: CellGrid::new(half_width, min_radius, bodies),
             calendar: Calendar::default(),
             brute_force,
+            predictions_at_renumber: 0,
+            renumbering: true,
             stats: EventStats::default(),
         }
     }
@@ -420,6 +453,77 @@ impl EventCore {
     /// True when the slot holds a body.
     pub fn slot_alive(&self, slot: u32) -> bool {
         self.alive.get(slot as usize).copied().unwrap_or(false)
+    }
+
+    /// Switch the periodic renumbering of slots on or off (on by default).
+    pub fn set_renumbering(&mut self, on: bool) {
+        self.renumbering = on;
+    }
+
+    /// True when enough predictions were made since the last renumbering.
+    pub fn due_for_renumbering(&self) -> bool {
+        let live = self.slots.len() - self.free.len();
+        self.renumbering
+            && live > 1
+            && self.stats.predictions - self.predictions_at_renumber >= RENUMBER_EVERY * live as u64
+    }
+
+    /// Renumber the live slots in Z-order of their positions at `now`, so that a
+    /// prediction's neighbours sit close together in memory again after the cloud has
+    /// mixed (cache misses otherwise dominate the cost of an event at large N). Every
+    /// trajectory, counter, logical cell and scheduled event moves with its body; slot
+    /// numbers decide nothing (ties are broken by stable ids), so the run is unchanged.
+    pub fn renumber(&mut self, now: f64) {
+        let shift = self.frame_shift(now);
+        let mut order: Vec<(u64, u64, u32)> = self
+            .live_slots()
+            .map(|s| {
+                let t = &self.slots[s as usize];
+                let x = self.wrap(t.at(now) - shift);
+                (morton_key(x, self.half_width), t.id, s)
+            })
+            .collect();
+        order.sort_unstable();
+        let mut new_of_old = vec![NONE; self.slots.len()];
+        for (new, &(_, _, old)) in order.iter().enumerate() {
+            new_of_old[old as usize] = new as u32;
+        }
+        let mut grid = self.grid.emptied();
+        let mut calendar = Calendar::default();
+        let mut slots = Vec::with_capacity(order.len());
+        let mut counters = Vec::with_capacity(order.len());
+        for (new, &(_, id, old)) in order.iter().enumerate() {
+            let new = new as u32;
+            slots.push(self.slots[old as usize]);
+            counters.push(self.counters[old as usize]);
+            self.slot_of_id[id as usize] = new;
+            if let Some((level, cell)) = self.grid.place_of(old) {
+                grid.insert_at(new, level, cell);
+            }
+            if let Some(mut event) = self.calendar.event_of(old) {
+                if let EventKind::Contact { slot, counter } = event.kind {
+                    let partner = new_of_old[slot as usize];
+                    // A removed partner made the prediction stale: predict it again then.
+                    event.kind = if partner == NONE {
+                        EventKind::Refresh
+                    } else {
+                        EventKind::Contact {
+                            slot: partner,
+                            counter,
+                        }
+                    };
+                }
+                calendar.set(new, id, Some(event));
+            }
+        }
+        self.alive = vec![true; slots.len()];
+        self.slots = slots;
+        self.counters = counters;
+        self.free.clear();
+        self.grid = grid;
+        self.calendar = calendar;
+        self.predictions_at_renumber = self.stats.predictions;
+        self.stats.renumberings += 1;
     }
 
     /// Every live slot.

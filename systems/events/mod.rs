@@ -25,7 +25,7 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 
 use self::calendar::EventKind;
-use self::core::{EventCore, Trajectory};
+use self::core::{EventCore, Trajectory, morton_key};
 use super::bodies::{Clockwork, bring_to, contribution};
 use crate::components::{
     Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
@@ -126,25 +126,6 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
         core.schedule(slot, 0.0);
     }
     core
-}
-
-/// Interleaved bits of the position quantised to 1024 steps per axis (a Z-curve key).
-fn morton_key(position: DVec3, half_width: f64) -> u64 {
-    let quantise = |x: f64| {
-        let f = ((x + half_width) / (2.0 * half_width)).clamp(0.0, 1.0 - f64::EPSILON);
-        (f * 1024.0) as u64
-    };
-    let spread = |mut v: u64| {
-        // 10 bits → every third bit of 30.
-        v &= 0x3ff;
-        v = (v | (v << 16)) & 0x0300_00ff;
-        v = (v | (v << 8)) & 0x0300_f00f;
-        v = (v | (v << 4)) & 0x030c_30c3;
-        (v | (v << 2)) & 0x0924_9249
-    };
-    spread(quantise(position.x))
-        | (spread(quantise(position.y)) << 1)
-        | (spread(quantise(position.z)) << 2)
 }
 
 /// Stage `Contact`: this step's contacts from the calendar.
@@ -374,6 +355,9 @@ pub fn schedule_next_step(
     let dt_max = dt_max_of(&control);
     let limit = (now + dt_max).min(clock.end);
     settle(&mut core, now, limit);
+    if core.due_for_renumbering() {
+        core.renumber(now);
+    }
     clock.clamped_at_min = false;
     clock.dt = step_to_next_event(&core, &clock, dt_max);
 }
