@@ -139,9 +139,10 @@ fn a_dense_cloud_gives_the_same_contacts_on_both_predictors() {
 
 #[test]
 fn renumbering_the_slots_changes_nothing() {
-    // Slots are renumbered in Z-order every few predictions per body (for cache
-    // locality); slot numbers must decide nothing. A merging, fragmenting, cooling scene
-    // run with and without renumbering ends bit for bit in the same state.
+    // Slots can be renumbered in Z-order every few predictions per body (for cache
+    // locality; off by default); slot numbers must decide nothing. A merging,
+    // fragmenting, cooling scene run with and without renumbering ends bit for bit in the
+    // same state.
     let s = Scenario::load(
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/quick_demo.json"),
     )

@@ -115,7 +115,9 @@ pub struct EventCore {
     brute_force: bool,
     /// Predictions made when the slots were last renumbered.
     predictions_at_renumber: u64,
-    /// False to never renumber (tests show that renumbering changes nothing).
+    /// Renumber slots periodically (off by default: measured ≤ 10 % faster at N = 1e5,
+    /// nothing at 1e4, and +136 MB of transient memory at 1e6; tests show that it
+    /// changes no result).
     renumbering: bool,
     pub stats: EventStats,
 }
@@ -165,7 +167,7 @@ impl EventCore {
             calendar: Calendar::default(),
             brute_force,
             predictions_at_renumber: 0,
-            renumbering: true,
+            renumbering: false,
             stats: EventStats::default(),
         }
     }
@@ -455,7 +457,7 @@ impl EventCore {
         self.alive.get(slot as usize).copied().unwrap_or(false)
     }
 
-    /// Switch the periodic renumbering of slots on or off (on by default).
+    /// Switch the periodic renumbering of slots on or off (off by default).
     pub fn set_renumbering(&mut self, on: bool) {
         self.renumbering = on;
     }
@@ -488,19 +490,23 @@ impl EventCore {
         for (new, &(_, _, old)) in order.iter().enumerate() {
             new_of_old[old as usize] = new as u32;
         }
-        let mut grid = self.grid.emptied();
-        let mut calendar = Calendar::default();
-        let mut slots = Vec::with_capacity(order.len());
-        let mut counters = Vec::with_capacity(order.len());
-        for (new, &(_, id, old)) in order.iter().enumerate() {
-            let new = new as u32;
-            slots.push(self.slots[old as usize]);
-            counters.push(self.counters[old as usize]);
-            self.slot_of_id[id as usize] = new;
-            if let Some((level, cell)) = self.grid.place_of(old) {
-                grid.insert_at(new, level, cell);
+        // Everything is rebuilt in the new numbering; each old structure is dropped as soon
+        // as what it holds has been copied out, to keep the transient memory small (a
+        // few bytes per body beyond the slot arrays).
+        let places: Vec<Option<(u8, [u16; 3])>> = order
+            .iter()
+            .map(|&(_, _, old)| self.grid.place_of(old))
+            .collect();
+        self.grid = self.grid.emptied();
+        for (new, place) in places.into_iter().enumerate() {
+            if let Some((level, cell)) = place {
+                self.grid.insert_at(new as u32, level, cell);
             }
-            if let Some(mut event) = self.calendar.event_of(old) {
+        }
+        let events: Vec<Option<Event>> = order
+            .iter()
+            .map(|&(_, _, old)| {
+                let mut event = self.calendar.event_of(old)?;
                 if let EventKind::Contact { slot, counter } = event.kind {
                     let partner = new_of_old[slot as usize];
                     // A removed partner made the prediction stale: predict it again then.
@@ -513,15 +519,30 @@ impl EventCore {
                         }
                     };
                 }
-                calendar.set(new, id, Some(event));
+                Some(event)
+            })
+            .collect();
+        self.calendar = Calendar::default();
+        for (new, (event, &(_, id, _))) in events.into_iter().zip(&order).enumerate() {
+            if event.is_some() {
+                self.calendar.set(new as u32, id, event);
             }
         }
-        self.alive = vec![true; slots.len()];
+        let slots: Vec<Trajectory> = order
+            .iter()
+            .map(|&(_, _, old)| self.slots[old as usize])
+            .collect();
         self.slots = slots;
+        let counters: Vec<u32> = order
+            .iter()
+            .map(|&(_, _, old)| self.counters[old as usize])
+            .collect();
         self.counters = counters;
+        for (new, &(_, id, _)) in order.iter().enumerate() {
+            self.slot_of_id[id as usize] = new as u32;
+        }
+        self.alive = vec![true; self.slots.len()];
         self.free.clear();
-        self.grid = grid;
-        self.calendar = calendar;
         self.predictions_at_renumber = self.stats.predictions;
         self.stats.renumberings += 1;
     }
