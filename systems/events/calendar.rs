@@ -141,6 +141,32 @@ impl Calendar {
         })
     }
 
+    /// Move every scheduled event to its slot's new number, in place: `new_of_old` is a
+    /// permutation of 0..len (slots beyond the heap's reach included), `partner` maps a
+    /// contact's partner slot to its new number or None when the partner is gone (the
+    /// event then becomes a refresh: its owner is predicted again at that time). Keys do
+    /// not change, so the heap order stands.
+    pub fn renumber(&mut self, new_of_old: &[u32], partner: impl Fn(u32) -> Option<u32>) {
+        // Slots past the permutation are past the last body: nothing is scheduled there
+        // (an earlier renumbering dropped them).
+        let len = new_of_old.len();
+        self.position.resize(len, ABSENT);
+        self.kinds.resize(len, EventKind::Refresh);
+        for entry in &mut self.heap {
+            entry.slot = new_of_old[entry.slot as usize];
+        }
+        for kind in &mut self.kinds {
+            if let EventKind::Contact { slot, counter } = *kind {
+                *kind = match partner(slot) {
+                    Some(slot) => EventKind::Contact { slot, counter },
+                    None => EventKind::Refresh,
+                };
+            }
+        }
+        permute_in_place(&mut self.position, new_of_old.to_vec());
+        permute_in_place(&mut self.kinds, new_of_old.to_vec());
+    }
+
     /// The earliest event: (slot, event).
     pub fn peek(&self) -> Option<(u32, Event)> {
         self.heap.first().map(|e| {
@@ -196,6 +222,18 @@ impl Calendar {
         self.heap.swap(a, b);
         self.position[self.heap[a].slot as usize] = a as u32;
         self.position[self.heap[b].slot as usize] = b as u32;
+    }
+}
+
+/// Move `v[i]` to `v[target[i]]` for every i, in place (`target` a permutation).
+pub fn permute_in_place<T>(v: &mut [T], mut target: Vec<u32>) {
+    assert_eq!(v.len(), target.len(), "a permutation of the whole slice");
+    for i in 0..v.len() {
+        while target[i] as usize != i {
+            let j = target[i] as usize;
+            v.swap(i, j);
+            target.swap(i, j);
+        }
     }
 }
 
