@@ -13,6 +13,8 @@ use glam::DVec3;
 
 use super::calendar::{Calendar, Event, EventKind, permute_in_place};
 use super::cells::{CellGrid, Partner, round_fast};
+use crate::resources::BoxGeometry;
+use crate::systems::grid::IMAGES;
 use crate::systems::time_step::time_to_contact;
 
 const NONE: u32 = u32::MAX;
@@ -191,17 +193,10 @@ impl EventCore {
     }
 
     fn wrap(&self, r: DVec3) -> DVec3 {
-        let side = self.side();
-        let mut w = r - side * ((r + DVec3::splat(self.half_width)) / side).floor();
-        for k in 0..3 {
-            if w[k] >= self.half_width {
-                w[k] -= side;
-            }
-            if w[k] < -self.half_width {
-                w[k] = -self.half_width;
-            }
+        BoxGeometry {
+            half_width: self.half_width,
         }
-        w
+        .wrap(r)
     }
 
     /// Where the grid's frame has moved by time t, modulo the box [m].
@@ -490,10 +485,9 @@ impl EventCore {
         for (new, &(_, _, old)) in order.iter().enumerate() {
             new_of_old[old as usize] = new as u32;
         }
-        let mut next_dead = live as u32;
-        for n in new_of_old.iter_mut().filter(|n| **n == NONE) {
-            *n = next_dead;
-            next_dead += 1;
+        let removed = new_of_old.iter_mut().filter(|n| **n == NONE);
+        for (next, n) in (live as u32..).zip(removed) {
+            *n = next;
         }
         // Everything moves in place, except the grid's lists, which are rebuilt from the
         // logical cells after the old ones are dropped: the transient memory is a few
@@ -530,18 +524,3 @@ impl EventCore {
         (0..self.slots.len() as u32).filter(|&s| self.alive[s as usize])
     }
 }
-
-/// The 27 lattice translations (in box sides) of a partner's nearest periodic images.
-const IMAGES: [DVec3; 27] = {
-    let mut images = [DVec3::ZERO; 27];
-    let mut k = 0;
-    while k < 27 {
-        images[k] = DVec3::new(
-            (k % 3) as f64 - 1.0,
-            ((k / 3) % 3) as f64 - 1.0,
-            (k / 9) as f64 - 1.0,
-        );
-        k += 1;
-    }
-    images
-};

@@ -233,6 +233,19 @@ pub fn pop_due_contacts(
     }
 }
 
+/// A body's trajectory as the world holds it (None if the entity is gone).
+fn trajectory_of(bodies: &ReadQuery, entity: Entity) -> Option<Trajectory> {
+    let (id, p, v, r, lt) = bodies.get(entity).ok()?;
+    Some(Trajectory {
+        entity,
+        id: id.0,
+        position: p.0,
+        velocity: v.0,
+        t_ref: lt.0,
+        radius: r.0,
+    })
+}
+
 /// File the step's changes in the core and re-predict the bodies they touched.
 fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuery, now: f64) {
     let start = events.filed;
@@ -243,16 +256,8 @@ fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuer
     events.filed_despawned = events.despawned.len();
     for k in events.filed_spawned..events.spawned.len() {
         let entity = events.spawned[k];
-        if let Ok((id, p, v, r, lt)) = bodies.get(entity) {
-            let slot = core.insert(Trajectory {
-                entity,
-                id: id.0,
-                position: p.0,
-                velocity: v.0,
-                t_ref: lt.0,
-                radius: r.0,
-            });
-            affected.push(slot);
+        if let Some(trajectory) = trajectory_of(bodies, entity) {
+            affected.push(core.insert(trajectory));
         }
     }
     events.filed_spawned = events.spawned.len();
@@ -260,27 +265,19 @@ fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuer
     // partners' new counters.
     for k in start..events.touched.len() {
         let entity = events.touched[k].0;
-        let Ok((id, p, v, r, lt)) = bodies.get(entity) else {
+        let Some(now_t) = trajectory_of(bodies, entity) else {
             continue; // merged away or fragmented: already removed
         };
-        let Some(slot) = core.slot_of(id.0) else {
+        let Some(slot) = core.slot_of(now_t.id) else {
             continue;
         };
         let t = core.trajectory(slot);
-        let unchanged =
-            t.velocity == v.0 && t.radius == r.0 && t.position == p.0 && t.t_ref == lt.0;
+        let unchanged = t.velocity == now_t.velocity
+            && t.radius == now_t.radius
+            && t.position == now_t.position
+            && t.t_ref == now_t.t_ref;
         if !unchanged {
-            core.update(
-                slot,
-                Trajectory {
-                    entity,
-                    id: id.0,
-                    position: p.0,
-                    velocity: v.0,
-                    t_ref: lt.0,
-                    radius: r.0,
-                },
-            );
+            core.update(slot, now_t);
         }
         affected.push(slot);
     }
