@@ -84,6 +84,33 @@ pub struct BodyState {
     pub primaries: f64,
 }
 
+/// A body's components, as a query reads them.
+pub type BodyComponents<'a> = (
+    &'a ParticleId,
+    &'a Position,
+    &'a Velocity,
+    &'a Mass,
+    &'a Radius,
+    &'a Temperature,
+    &'a Hardness,
+    &'a Primaries,
+);
+
+impl From<BodyComponents<'_>> for BodyState {
+    fn from((id, p, v, m, b, t, h, n): BodyComponents<'_>) -> Self {
+        Self {
+            id: id.0,
+            position: p.0,
+            velocity: v.0,
+            mass: m.0,
+            radius: b.0,
+            temperature: t.0,
+            hardness: h.0,
+            primaries: n.0,
+        }
+    }
+}
+
 impl BodyState {
     /// The components of this body at t = 0, ready to spawn.
     pub fn bundle(&self) -> ParticleBundle {

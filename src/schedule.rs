@@ -565,16 +565,7 @@ impl Simulation {
         let mut bodies: Vec<BodyState> = query
             .iter(&self.world)
             .map(|(id, p, v, m, b, t, h, n, lt)| {
-                let state = BodyState {
-                    id: id.0,
-                    position: p.0,
-                    velocity: v.0,
-                    mass: m.0,
-                    radius: b.0,
-                    temperature: t.0,
-                    hardness: h.0,
-                    primaries: n.0,
-                };
+                let state = BodyState::from((id, p, v, m, b, t, h, n));
                 if lazy {
                     systems::bodies::state_at(&state, lt.0, now, &clockwork)
                 } else {

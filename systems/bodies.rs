@@ -102,17 +102,6 @@ pub fn state_at(body: &BodyState, t_ref: f64, now: f64, clockwork: &Clockwork) -
     b
 }
 
-/// One body's contribution to the conserved totals.
-pub fn contribution(mass: f64, velocity: DVec3, temperature: f64, heat_capacity: f64) -> Totals {
-    Totals {
-        mass,
-        momentum: mass * velocity,
-        momentum_scale: mass * velocity.length(),
-        kinetic: 0.5 * mass * velocity.length_squared(),
-        thermal: mass * heat_capacity * temperature,
-    }
-}
-
 type BodyData = (
     Entity,
     &'static ParticleId,
@@ -175,16 +164,7 @@ impl Bodies<'_, '_> {
     /// A body's state at the current time (read only: nothing is written).
     pub fn get(&self, entity: Entity) -> Option<BodyState> {
         let (_, id, p, v, m, b, t, h, n, lt) = self.query.get(entity).ok()?;
-        let state = BodyState {
-            id: id.0,
-            position: p.0,
-            velocity: v.0,
-            mass: m.0,
-            radius: b.0,
-            temperature: t.0,
-            hardness: h.0,
-            primaries: n.0,
-        };
+        let state = BodyState::from((id, p, v, m, b, t, h, n));
         if !self.lazy.0 {
             return Some(state);
         }
@@ -269,7 +249,7 @@ fn apply(
     // The contribution before the body is brought forward: the heat it loses on the
     // way is tallied in the ledger and shows in its state after.
     let c = clockwork.material.heat_capacity;
-    events.touch(entity, contribution(m.0, v.0, t.0, c));
+    events.touch(entity, Totals::of_body(m.0, v.0, t.0, c));
     let mut tally = Tally::default();
     if lazy {
         tally.cooling_loss = bring_to(
@@ -278,17 +258,8 @@ fn apply(
     }
     // Energies before and after, computed as `contribution` computes them, so the
     // ledger moves by exactly the difference the diagnostics' running totals see.
-    let before = contribution(m.0, v.0, t.0, c);
-    let mut state = BodyState {
-        id: id.0,
-        position: p.0,
-        velocity: v.0,
-        mass: m.0,
-        radius: b.0,
-        temperature: t.0,
-        hardness: h.0,
-        primaries: n.0,
-    };
+    let before = Totals::of_body(m.0, v.0, t.0, c);
+    let mut state = BodyState::from((id, &*p, &*v, m, b, &*t, &*h, n));
     change(&mut state);
     p.0 = clockwork.geometry.wrap(state.position);
     v.0 = state.velocity;
@@ -296,7 +267,7 @@ fn apply(
         t.0 = state.temperature;
         h.0 = clockwork.material.hardness(t.0);
     }
-    let after = contribution(m.0, v.0, t.0, c);
+    let after = Totals::of_body(m.0, v.0, t.0, c);
     tally.work = after.kinetic - before.kinetic;
     tally.work_turnover = tally.work.abs();
     tally.heat = after.thermal - before.thermal;

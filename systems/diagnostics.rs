@@ -47,6 +47,17 @@ pub struct Totals {
 }
 
 impl Totals {
+    /// One body's contribution: mass [kg], velocity [m/s], temperature [K], C [J/(kg K)].
+    pub fn of_body(mass: f64, velocity: DVec3, temperature: f64, heat_capacity: f64) -> Self {
+        Self {
+            mass,
+            momentum: mass * velocity,
+            momentum_scale: mass * velocity.length(),
+            kinetic: 0.5 * mass * velocity.length_squared(),
+            thermal: mass * heat_capacity * temperature,
+        }
+    }
+
     pub fn energy(&self) -> f64 {
         self.kinetic + self.thermal
     }
@@ -56,11 +67,12 @@ impl Totals {
 pub fn totals(rows: impl Iterator<Item = (f64, DVec3, f64)>, heat_capacity: f64) -> Totals {
     let mut t = Totals::default();
     for (m, v, theta) in rows {
-        t.mass += m;
-        t.momentum += m * v;
-        t.momentum_scale += m * v.length();
-        t.kinetic += 0.5 * m * v.length_squared();
-        t.thermal += m * heat_capacity * theta;
+        let body = Totals::of_body(m, v, theta, heat_capacity);
+        t.mass += body.mass;
+        t.momentum += body.momentum;
+        t.momentum_scale += body.momentum_scale;
+        t.kinetic += body.kinetic;
+        t.thermal += body.thermal;
     }
     t
 }
@@ -93,24 +105,14 @@ impl FromWorld for InitialEnergies {
 }
 
 /// The system.
-#[allow(clippy::type_complexity, clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments)]
 pub fn check_invariants(
     settings: Res<DiagnosticsSettings>,
     material: Res<MaterialConstants>,
     clock: Res<SimClock>,
     ledger: Res<EnergyLedger>,
     initial: Local<InitialEnergies>,
-    bodies: Query<
-        (
-            &ParticleId,
-            &Position,
-            &Velocity,
-            &Mass,
-            &Radius,
-            &Temperature,
-        ),
-        With<Particle>,
-    >,
+    bodies: TotalsQuery,
     mut report: ResMut<InvariantReport>,
     mut counters: ResMut<Counters>,
 ) {
@@ -305,7 +307,7 @@ pub fn check_step_totals(
                 id.0, p.0, v.0, m.0, b.0, t.0
             ));
         }
-        running.add(&crate::systems::bodies::contribution(m.0, v.0, t.0, c), 1.0);
+        running.add(&Totals::of_body(m.0, v.0, t.0, c), 1.0);
     }
     for (_, before) in seen.iter() {
         running.add(before, -1.0);
@@ -415,17 +417,7 @@ pub fn check_now(
     step: u64,
     ledger: &EnergyLedger,
     initial: &InitialEnergies,
-    bodies: &Query<
-        (
-            &ParticleId,
-            &Position,
-            &Velocity,
-            &Mass,
-            &Radius,
-            &Temperature,
-        ),
-        With<Particle>,
-    >,
+    bodies: &TotalsQuery,
     report: &mut InvariantReport,
     counters: &mut Counters,
 ) {

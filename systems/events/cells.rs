@@ -191,11 +191,6 @@ impl CellGrid {
         }
     }
 
-    /// Number of gridded levels (the whole-box level has this index).
-    pub fn gridded_levels(&self) -> usize {
-        self.levels.len()
-    }
-
     /// Cells per side of each gridded level.
     pub fn cells_per_side(&self) -> Vec<u32> {
         self.levels.iter().map(|l| l.n).collect()

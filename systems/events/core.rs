@@ -172,11 +172,6 @@ impl EventCore {
         }
     }
 
-    /// Cells per side of the grid's levels.
-    pub fn cells_per_side(&self) -> Vec<u32> {
-        self.grid.cells_per_side()
-    }
-
     /// Bytes held by the core (slots, grid, calendar).
     pub fn bytes(&self) -> usize {
         self.slots.capacity() * std::mem::size_of::<Trajectory>()

@@ -26,7 +26,8 @@ use glam::DVec3;
 
 use self::calendar::EventKind;
 use self::core::{EventCore, Trajectory, morton_key};
-use super::bodies::{Clockwork, bring_to, contribution};
+use super::bodies::{Clockwork, bring_to};
+use super::diagnostics::Totals;
 use crate::components::{
     Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
 };
@@ -200,8 +201,8 @@ pub fn pop_due_contacts(
         };
         // Each body's contribution to the totals before it is brought forward: the heat
         // it loses on the way is tallied in the ledger and shows in its state after.
-        let before_a = contribution(a.3.0, a.2.0, a.5.0, heat_capacity);
-        let before_b = contribution(b.3.0, b.2.0, b.5.0, heat_capacity);
+        let before_a = Totals::of_body(a.3.0, a.2.0, a.5.0, heat_capacity);
+        let before_b = Totals::of_body(b.3.0, b.2.0, b.5.0, heat_capacity);
         for body in [&mut a, &mut b] {
             let (_, p, v, m, r, t, h, lt) = body;
             ledger.cooling_loss += bring_to(
@@ -249,7 +250,9 @@ fn trajectory_of(bodies: &ReadQuery, entity: Entity) -> Option<Trajectory> {
 /// File the step's changes in the core and re-predict the bodies they touched.
 fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuery, now: f64) {
     let start = events.filed;
-    let mut affected: Vec<u32> = Vec::new();
+    // The slots to re-predict gather in `repredict` (already holding those whose event a
+    // step used up): a buffer kept across steps, so nothing is allocated per step.
+    let affected = &mut events.repredict;
     for k in events.filed_despawned..events.despawned.len() {
         core.remove(events.despawned[k]);
     }
@@ -282,14 +285,14 @@ fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuer
         affected.push(slot);
     }
     events.filed = events.touched.len();
-    affected.append(&mut events.repredict);
     affected.sort_unstable();
     affected.dedup();
-    for slot in affected {
+    for &slot in affected.iter() {
         if core.slot_alive(slot) {
             core.schedule(slot, now);
         }
     }
+    affected.clear();
 }
 
 /// Pop crossings, refreshes and stale predictions until the calendar's top is a real
