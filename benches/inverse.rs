@@ -1,6 +1,8 @@
 //! Speed of the inverse problem's building blocks: one P02 ensemble sample (the unit
-//! of work of `paper2002_inverse.json`, N = 100, 200 fixed steps) and one GA
-//! generation on a synthetic cost (the algorithm's own overhead).
+//! of work of `paper2002_inverse.json`, N = 100, 200 fixed steps), one GA
+//! generation on a synthetic cost (the algorithm's own overhead), and the task
+//! farm's cost per task when the task itself costs nothing (threads of one process;
+//! the MPI round trip is reported by `mpirun … agglo optimize` itself).
 
 use std::hint::black_box;
 use std::path::Path;
@@ -57,17 +59,35 @@ fn ga_generation(c: &mut Criterion) {
             if state.finished {
                 state = GaState::new(lower.clone(), upper.clone());
             }
-            ga::step(&spec, (&lower, &upper), &mut state, |_, _, g| {
-                Ok(Evaluation {
-                    cost: g.iter().map(|x| (x - 0.3) * (x - 0.3)).sum(),
-                    samples: 1,
-                    ..Default::default()
-                })
+            ga::step(&spec, (&lower, &upper), &mut state, |_, candidates| {
+                Ok(candidates
+                    .iter()
+                    .map(|(_, g)| Evaluation {
+                        cost: g.iter().map(|x| (x - 0.3) * (x - 0.3)).sum(),
+                        samples: 1,
+                        ..Default::default()
+                    })
+                    .collect())
             })
             .unwrap()
         })
     });
 }
 
-criterion_group!(benches, p02_sample, ga_generation);
+fn farm_overhead(c: &mut Criterion) {
+    use agglo::farm::{Workers, map};
+    // 1000 tasks that cost nothing: the time is the farm's own (queue, wake-ups,
+    // collection in order), per task = time / 1000.
+    let tasks: Vec<u64> = (0..1000).collect();
+    for threads in [1, 2] {
+        c.bench_function(&format!("farm_1000_empty_tasks_{threads}_threads"), |b| {
+            b.iter(|| {
+                let out = map(&Workers::local(threads), tasks.clone(), &|x: &u64| x + 1).unwrap();
+                black_box(out.len())
+            })
+        });
+    }
+}
+
+criterion_group!(benches, p02_sample, ga_generation, farm_overhead);
 criterion_main!(benches);

@@ -12,6 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 mod clamp_watch;
 mod inverse;
+mod ranks;
 
 use agglo::output::{write_final_state, write_summary};
 use agglo::prelude::*;
@@ -83,6 +84,9 @@ pub enum StudyCommand {
         /// A published b_f/b0 to draw on the growth chart (e.g. 3.23 for P04).
         #[arg(long)]
         target_growth: Option<f64>,
+        /// Runs at once (1: timings do not share cores; 0 = one per core).
+        #[arg(long, default_value_t = 1)]
+        threads: usize,
     },
     /// Stability maps of the pair solve and cooling, and missed collisions against step size.
     Stability {
@@ -125,13 +129,25 @@ pub struct RunArgs {
     pub quiet: bool,
 }
 
-/// Parse arguments and run the chosen command.
+/// Parse arguments and run the chosen command (under `mpirun`, rank 0 runs it and the
+/// other ranks serve its simulations).
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    match cli.command {
+    let cluster = ranks::join();
+    if let Some(code) = ranks::serve(cluster.as_ref(), &cli.command) {
+        drop(cluster); // MPI_Finalize before leaving.
+        std::process::exit(code);
+    }
+    let result = dispatch(cli.command, cluster.as_ref());
+    ranks::finish(cluster.as_ref(), result.is_ok());
+    result
+}
+
+fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow::Result<()> {
+    match command {
         Command::Run(args) => run(args),
         Command::Validate { scenario } => validate(&scenario),
-        Command::Study(study) => run_study(study),
+        Command::Study(study) => run_study(study, cluster),
         Command::Schema => {
             println!(
                 "{}",
@@ -149,8 +165,8 @@ pub fn main() -> anyhow::Result<()> {
             Ok(())
         }
         Command::Layout { file, out } => layout(&file, out),
-        Command::Optimize(args) => inverse::optimize(args),
-        Command::Scan(args) => inverse::scan(args),
+        Command::Optimize(args) => inverse::optimize(args, cluster),
+        Command::Scan(args) => inverse::scan(args, cluster),
     }
 }
 
@@ -439,7 +455,7 @@ fn print_report(s: &Summary) {
     );
 }
 
-fn run_study(command: StudyCommand) -> anyhow::Result<()> {
+fn run_study(command: StudyCommand, cluster: Option<&agglo::farm::Cluster>) -> anyhow::Result<()> {
     use agglo::study::{accuracy, stability};
     match command {
         StudyCommand::Accuracy {
@@ -448,6 +464,7 @@ fn run_study(command: StudyCommand) -> anyhow::Result<()> {
             repeats,
             seeds,
             target_growth,
+            threads,
         } => {
             let base = load(&scenario)?;
             let options = accuracy::AccuracyOptions {
@@ -456,7 +473,15 @@ fn run_study(command: StudyCommand) -> anyhow::Result<()> {
                 target_growth,
                 ..Default::default()
             };
-            let study = accuracy::run_accuracy(&base, &options, |line| eprintln!("{line}"))?;
+            let workers = agglo::farm::Workers {
+                threads: ranks::threads(threads, cluster),
+                cluster,
+            };
+            let study =
+                accuracy::run_accuracy(&base, &options, &workers, |line| eprintln!("{line}"))?;
+            if let Some(line) = ranks::report(cluster) {
+                eprintln!("{line}");
+            }
             accuracy::write_accuracy(&out, &study)?;
             println!("wrote {}", out.join("accuracy.csv").display());
         }

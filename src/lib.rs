@@ -25,6 +25,7 @@ pub mod charts;
 pub mod cloud;
 pub mod components;
 pub mod error;
+pub mod farm;
 pub mod inverse;
 pub mod observables;
 pub mod output;

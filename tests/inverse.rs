@@ -34,19 +34,24 @@ fn run_synthetic(spec: &GaSpec, calls: &AtomicUsize) -> GaState {
     let target = [1.234, 0.777, 321.0];
     let mut state = GaState::new(lower.clone(), upper.clone());
     while !state.finished {
-        ga::step(spec, (&lower, &upper), &mut state, |_, _, genes| {
-            calls.fetch_add(1, Ordering::Relaxed);
-            let cost = genes
+        ga::step(spec, (&lower, &upper), &mut state, |_, candidates| {
+            Ok(candidates
                 .iter()
-                .zip(&target)
-                .zip(lower.iter().zip(&upper))
-                .map(|((x, t), (lo, hi))| ((x - t) / (hi - lo)).powi(2))
-                .sum();
-            Ok(Evaluation {
-                cost,
-                samples: 1,
-                ..Default::default()
-            })
+                .map(|(_, genes)| {
+                    calls.fetch_add(1, Ordering::Relaxed);
+                    let cost = genes
+                        .iter()
+                        .zip(&target)
+                        .zip(lower.iter().zip(&upper))
+                        .map(|((x, t), (lo, hi))| ((x - t) / (hi - lo)).powi(2))
+                        .sum();
+                    Evaluation {
+                        cost,
+                        samples: 1,
+                        ..Default::default()
+                    }
+                })
+                .collect())
         })
         .unwrap();
     }
@@ -132,7 +137,8 @@ fn tiny_problem(generations: usize) -> InverseProblem {
   "end_time": {{ "p02": {{ "steps": 60 }} }},
   "cost": {{ "pi02": {{ "target_ratio": 2 }} }},
   "ensemble": {{ "tol": 1e-3, "min_samples": 2, "max_samples": 6, "track": ["mean"] }},
-  "ga": {{ "strings": 8, "parents": 2, "generations": {generations}, "rescale_every": 2, "shrink": 0.5, "seed": 5 }}
+  "ga": {{ "strings": 8, "parents": 2, "generations": {generations}, "rescale_every": 2, "shrink": 0.5, "seed": 5 }},
+  "reevaluate": {{ "strings": 2, "samples": 5 }}
 }}"#
     );
     InverseProblem::from_json(&text, Path::new(".")).unwrap()
@@ -266,7 +272,8 @@ fn best_string_rerun_through_agglo_run_reproduces_its_cost() {
         String::from_utf8_lossy(&out.stderr)
     );
     let best: serde_json::Value = serde_json::from_str(&read(&out_dir, "best.json")).unwrap();
-    let top = &best["top"][0];
+    // best_scenario.json is the winner of the closing check: its fresh seeds re-run.
+    let top = &best["check"]["ranked"][0];
     let reported = top["cost"].as_f64().unwrap();
     let seeds: Vec<u64> = top["seeds"]
         .as_array()
@@ -442,4 +449,187 @@ fn failed_sample_is_an_error_naming_the_string_or_a_penalty() {
     let state = inverse::optimize(&p, &tmp.path().join("p"), &Options::default()).unwrap();
     let best = state.best().unwrap();
     assert_eq!((best.eval.cost, best.eval.failures), (9.0, 1));
+}
+
+// ---- Honest winners: standard errors, the standard-error rule, the closing check ----
+
+use agglo::inverse::ensemble::{Observables, cost_standard_error, standard_error};
+use agglo::inverse::problem::{CostSpec, EnsembleRule};
+
+fn obs(mean: f64, b_star: f64) -> Observables {
+    Observables {
+        mean,
+        b_star,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn standard_errors_follow_their_closed_forms() {
+    // 2, 4, 6: sample s.d. 2, standard error 2/√3.
+    let se = standard_error([2.0, 4.0, 6.0].into_iter()).unwrap();
+    assert!((se - 2.0 / 3f64.sqrt()).abs() < 1e-15, "{se}");
+    assert_eq!(standard_error([1.0].into_iter()), None);
+    let samples = [obs(2.0, 5.0), obs(4.0, 5.0), obs(6.0, 5.0)];
+    // Π02 = |m/r_t − 1| is linear in m away from the kink: s.e. = s.e.(m)/r_t.
+    let pi02 = cost_standard_error(&CostSpec::Pi02 { target_ratio: 2.0 }, &samples).unwrap();
+    assert!((pi02 - se / 2.0).abs() < 1e-15, "{pi02}");
+    // Π04 = 1 − m/b*, b* fixed: s.e.(m)/b*.
+    let pi04 = cost_standard_error(&CostSpec::Pi04, &samples).unwrap();
+    assert!((pi04 - se / 5.0).abs() < 1e-15, "{pi04}");
+    // b* moving with m in proportion: m/b* is constant, so the delta method gives 0
+    // (to rounding) where the running-mean view would see a spread in both.
+    let prop = [obs(2.0, 4.0), obs(4.0, 8.0), obs(6.0, 12.0)];
+    let zero = cost_standard_error(&CostSpec::Pi04, &prop).unwrap();
+    assert!(zero < 1e-15, "{zero}");
+}
+
+#[test]
+fn standard_error_rule_waits_for_the_spread_not_for_two_agreeing_samples() {
+    // Two samples that agree, then a spread: 3, 3, 1, 5, 3, 3, …
+    let mut values = vec![3.0, 3.0, 1.0, 5.0];
+    values.resize(30, 3.0);
+    // The papers' rule stops on the two agreeing samples.
+    assert_eq!(samples_needed(&values, 0.01, 2, 100), Some(2));
+    // The standard-error rule (with min_samples = 5, so that a spread can show)
+    // stops once s.e. = √(8/(n(n−1))) ≤ 5 % of the mean 3, i.e. n(n−1) ≥ 355.6: n = 20.
+    let mut rule = StoppingRule::of_kind(EnsembleRule::StandardError, 0.05, 5, 100);
+    let mut stopped = None;
+    for n in 1..=values.len() {
+        let v = &values[..n];
+        let mean = v.iter().sum::<f64>() / n as f64;
+        if rule.push_with_errors(&[mean], &[standard_error(v.iter().copied())]) {
+            stopped = Some(n);
+            break;
+        }
+    }
+    assert_eq!(stopped, Some(20));
+    // Without a standard error (one sample) the rule never counts as settled.
+    let mut rule = StoppingRule::of_kind(EnsembleRule::StandardError, 0.05, 1, 100);
+    assert!(!rule.push_with_errors(&[3.0], &[None]));
+}
+
+#[test]
+fn closing_check_reranks_the_best_strings_on_fresh_seeds() {
+    let problem = tiny_problem(3);
+    let tmp = tempfile::tempdir().unwrap();
+    let state = inverse::optimize(&problem, tmp.path(), &Options::default()).unwrap();
+    let check = problem.spec.reevaluate;
+    assert_eq!(
+        state.finalists.len(),
+        check.strings.min(state.parents.len())
+    );
+    for w in state.finalists.windows(2) {
+        assert!(w[0].eval.cost <= w[1].eval.cost, "not ranked: {w:?}");
+    }
+    let mut ga_ranks: Vec<usize> = state.finalists.iter().map(|f| f.ga_rank).collect();
+    ga_ranks.sort();
+    assert_eq!(ga_ranks, (1..=state.finalists.len()).collect::<Vec<_>>());
+    let best: serde_json::Value = serde_json::from_str(&read(tmp.path(), "best.json")).unwrap();
+    let ga_seeds: Vec<u64> = best["top"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|t| {
+            t["seeds"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|s| s.as_u64().unwrap())
+        })
+        .collect();
+    for (f, c) in state
+        .finalists
+        .iter()
+        .zip(best["check"]["ranked"].as_array().unwrap())
+    {
+        assert_eq!(f.eval.samples, check.samples);
+        assert!(f.eval.cost_se.is_some_and(|s| s.is_finite() && s >= 0.0));
+        assert_eq!(c["ga_rank"].as_u64().unwrap() as usize, f.ga_rank);
+        assert_eq!(c["cost"].as_f64().unwrap(), f.eval.cost);
+        let ga = &state.parents[f.ga_rank - 1];
+        assert_eq!(f.genes, ga.genes);
+        assert_eq!(c["ga_cost"].as_f64().unwrap(), ga.eval.cost);
+        // Fresh seeds: none shared with the GA's own ensembles.
+        for s in c["seeds"].as_array().unwrap() {
+            assert!(!ga_seeds.contains(&s.as_u64().unwrap()));
+        }
+    }
+    // The GA's own figures carry standard errors too (≥ 2 samples each here).
+    assert!(best["top"][0]["cost_se"].as_f64().is_some());
+    // Rerunning the (finished) problem with --resume does not run the check again.
+    let again = inverse::optimize(
+        &problem,
+        tmp.path(),
+        &Options {
+            resume: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(again.finalists, state.finalists);
+}
+
+#[test]
+fn standard_error_rule_in_a_real_ensemble_meets_its_tolerance_or_the_cap() {
+    let mut spec = tiny_problem(1).spec;
+    spec.ensemble.rule = EnsembleRule::StandardError;
+    spec.ensemble.tol = 0.01;
+    spec.ensemble.max_samples = 8;
+    spec.reevaluate.strings = 0;
+    let p = InverseProblem::new(spec, Path::new(".")).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let state = inverse::optimize(&p, tmp.path(), &Options::default()).unwrap();
+    assert!(state.finalists.is_empty());
+    for m in &state.parents {
+        let e = &m.eval;
+        let se = e.growth_se.unwrap();
+        assert!(
+            e.samples == 8 || se <= 0.01 * e.means.mean,
+            "stopped at {} samples with s.e. {se} > 1 % of {}",
+            e.samples,
+            e.means.mean
+        );
+    }
+}
+
+#[test]
+fn speculative_samples_never_change_an_ensemble() {
+    use agglo::farm::Workers;
+    use agglo::inverse::batch::{EnsembleBatch, Job, SampleScene};
+    use agglo::inverse::ensemble::Accumulator;
+    let p = tiny_problem(1);
+    let jobs = || -> Vec<Job> {
+        [2.0, 6.0, 12.0]
+            .iter()
+            .enumerate()
+            .map(|(i, &v0)| Job {
+                scene: SampleScene::Field {
+                    path: "cloud.v_rel.0".into(),
+                    value: v0,
+                },
+                seed_of: Box::new(move |s| inverse::derive_seed(&[9, i as u64, s as u64])),
+                keep_radii: true,
+                accumulator: Accumulator::new(
+                    &p.spec.ensemble,
+                    &p.spec.cost,
+                    p.spec.on_failure,
+                    (0, i),
+                ),
+                label: format!("v0 = {v0}"),
+                coordinates: (0, i),
+            })
+            .collect()
+    };
+    let (plain, none_wasted) = EnsembleBatch::new(jobs())
+        .without_speculation()
+        .run(&Workers::local(1), &p)
+        .unwrap();
+    assert_eq!(none_wasted, 0);
+    // Four threads on three short jobs: idle threads run ahead speculatively.
+    let (spec, _wasted) = EnsembleBatch::new(jobs())
+        .run(&Workers::local(4), &p)
+        .unwrap();
+    assert_eq!(plain, spec);
+    assert!(plain.iter().all(|e| e.samples >= 2));
 }

@@ -8,7 +8,10 @@ use std::time::Instant;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
+use agglo::farm::{Cluster, Workers};
 use agglo::inverse::{self, Event, InverseProblem, Options};
+
+use super::ranks;
 
 #[derive(clap::Args, Debug)]
 pub struct OptimizeArgs {
@@ -20,7 +23,7 @@ pub struct OptimizeArgs {
     /// Continue the run checkpointed in --out.
     #[arg(long)]
     pub resume: bool,
-    /// Worker threads (default: one per core).
+    /// Worker threads (default: one per core; under mpirun, one per rank).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
     /// No progress display and no report.
@@ -51,6 +54,7 @@ pub struct ScanArgs {
     /// Output directory (scan.csv, scan.png/svg).
     #[arg(long)]
     pub out: PathBuf,
+    /// Worker threads (default: one per core; under mpirun, one per rank).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
     #[arg(long, short)]
@@ -70,7 +74,7 @@ fn interrupt_flag() -> Arc<AtomicBool> {
     flag
 }
 
-pub fn optimize(args: OptimizeArgs) -> anyhow::Result<()> {
+pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result<()> {
     let problem = load(&args.problem)?;
     let ga = &problem.spec.ga;
     let cancel = interrupt_flag();
@@ -114,6 +118,13 @@ pub fn optimize(args: OptimizeArgs) -> anyhow::Result<()> {
                     n as f64 / t.max(1e-9),
                 ));
             }
+            Event::CheckStarted { strings, samples } => {
+                bar.set_prefix("check");
+                bar.set_length(0);
+                bar.println(format!(
+                    "closing check: the best {strings} strings, {samples} fresh samples each"
+                ));
+            }
             Event::GenerationDone(row) => {
                 *best.lock().unwrap_or_else(|p| p.into_inner()) = (row.best_cost, row.mean_top_k);
                 // ETA from this process's pace (a resumed run started later than generation 0).
@@ -134,7 +145,8 @@ pub fn optimize(args: OptimizeArgs) -> anyhow::Result<()> {
         }
     };
     let options = Options {
-        threads: args.threads,
+        threads: ranks::threads(args.threads, cluster),
+        cluster,
         resume: args.resume,
         stop_after: args.stop_after,
         cancel: Some(&cancel),
@@ -170,13 +182,29 @@ pub fn optimize(args: OptimizeArgs) -> anyhow::Result<()> {
             for (n, x) in names.iter().zip(&b.genes) {
                 println!("  {n:>12} = {x:.6e}");
             }
+            if let Some(w) = state.finalists.first() {
+                println!(
+                    "  closing check, {} fresh samples per string: winner GA rank {}, cost {:.6e} ± {:.2e}, \
+                     b_f/b0 = {:.4} ± {:.4} (the GA's own figure: {:.6e})",
+                    w.eval.samples,
+                    w.ga_rank,
+                    w.eval.cost,
+                    w.eval.cost_se.unwrap_or(f64::NAN),
+                    w.eval.means.mean,
+                    w.eval.growth_se.unwrap_or(f64::NAN),
+                    state.parents[w.ga_rank - 1].eval.cost
+                );
+            }
             println!("  outputs in {}", args.out.display());
+        }
+        if let Some(line) = ranks::report(cluster) {
+            println!("  {line}");
         }
     }
     Ok(())
 }
 
-pub fn scan(args: ScanArgs) -> anyhow::Result<()> {
+pub fn scan(args: ScanArgs, cluster: Option<&Cluster>) -> anyhow::Result<()> {
     let problem = load(&args.problem)?;
     anyhow::ensure!(
         args.points >= 2,
@@ -224,7 +252,10 @@ pub fn scan(args: ScanArgs) -> anyhow::Result<()> {
         &problem,
         &args.gene,
         &values,
-        args.threads,
+        &Workers {
+            threads: ranks::threads(args.threads, cluster),
+            cluster,
+        },
         Some(&cancel),
         Some(&on_point),
     );
@@ -248,6 +279,9 @@ pub fn scan(args: ScanArgs) -> anyhow::Result<()> {
             );
         }
         println!("  outputs in {}", args.out.display());
+        if let Some(line) = ranks::report(cluster) {
+            println!("  {line}");
+        }
     }
     Ok(())
 }

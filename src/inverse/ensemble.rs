@@ -8,16 +8,24 @@
 //! |Q̄_{E+1} − Q̄_E| ≤ TOL |Q̄_{E+1}| (and E+1 ≥ min_samples), or at max_samples.
 //! The cost is computed from the ensemble means (so Π02 = |mean(b_f/b0)/r_t − 1|
 //! can approach zero, as P02 reports).
-
-use std::sync::atomic::{AtomicBool, Ordering};
+//!
+//! That rule (the papers') stops as soon as two running means agree, which they
+//! can do by chance; the `standard_error` rule stops once the standard error of
+//! every tracked mean is within TOL instead. Every evaluation reports the standard
+//! error of its cost (delta method on the per-sample observables) and of b̄_f/b0.
+//!
+//! Samples are fed to an [`Accumulator`] strictly in sample order, wherever and in
+//! whatever order they were computed (see `batch`), so the result is the same
+//! for any number of threads or ranks.
 
 use serde::{Deserialize, Serialize};
 
 use crate::observables::Growth;
+use crate::scenario::Scenario;
 use crate::schedule::Simulation;
 
 use super::problem::{
-    CostSpec, EnsembleSpec, FailurePolicy, InverseError, InverseProblem, Moment, Tracked,
+    CostSpec, EnsembleRule, EnsembleSpec, FailurePolicy, Moment, SampleFailure, Tracked,
 };
 
 /// splitmix64 finaliser: a bijective 64-bit mixer.
@@ -63,6 +71,16 @@ impl Observables {
             b_star: g.b_star / g.b0,
         }
     }
+    /// The observables as an array, in field order.
+    fn to_array(self) -> [f64; 5] {
+        [
+            self.mean,
+            self.std_dev,
+            self.skewness,
+            self.kurtosis,
+            self.b_star,
+        ]
+    }
     fn add(&mut self, o: &Self) {
         self.mean += o.mean;
         self.std_dev += o.std_dev;
@@ -102,9 +120,79 @@ pub fn cost_of(spec: &CostSpec, m: &Observables) -> f64 {
     }
 }
 
+/// ∂cost/∂(ensemble means), in [`Observables::to_array`] order, at the means `m`.
+fn cost_gradient(spec: &CostSpec, m: &Observables) -> [f64; 5] {
+    match *spec {
+        CostSpec::Pi04 => [
+            -1.0 / m.b_star,
+            0.0,
+            0.0,
+            0.0,
+            m.mean / (m.b_star * m.b_star),
+        ],
+        CostSpec::Pi02 { target_ratio } => {
+            let s = (m.mean / target_ratio - 1.0).signum();
+            [s / target_ratio, 0.0, 0.0, 0.0, 0.0]
+        }
+        CostSpec::Moment { moment, target } => {
+            let k = match moment {
+                Moment::Mean => 0,
+                Moment::StdDev => 1,
+                Moment::Skewness => 2,
+                Moment::Kurtosis => 3,
+            };
+            let x = m.to_array()[k];
+            let mut g = [0.0; 5];
+            g[k] = if target == 0.0 {
+                x.signum()
+            } else {
+                ((x - target) / target).signum() / target
+            };
+            g
+        }
+    }
+}
+
+/// Standard error of the mean of `values` (None below two samples).
+pub fn standard_error(values: impl ExactSizeIterator<Item = f64> + Clone) -> Option<f64> {
+    let n = values.len();
+    if n < 2 {
+        return None;
+    }
+    let mean = values.clone().sum::<f64>() / n as f64;
+    let ss: f64 = values.map(|x| (x - mean) * (x - mean)).sum();
+    Some((ss / (n as f64 * (n - 1) as f64)).sqrt())
+}
+
+/// Standard error of the cost of the ensemble means, by the delta method: the cost
+/// linearised about the means, applied to each sample's deviation from them.
+pub fn cost_standard_error(spec: &CostSpec, samples: &[Observables]) -> Option<f64> {
+    let n = samples.len();
+    if n < 2 {
+        return None;
+    }
+    let mut m = Observables::default();
+    for o in samples {
+        m.add(o);
+    }
+    let m = m.scaled(1.0 / n as f64);
+    let g = cost_gradient(spec, &m);
+    let mean = m.to_array();
+    let linear = samples.iter().map(|o| {
+        o.to_array()
+            .iter()
+            .zip(&mean)
+            .zip(&g)
+            .map(|((x, xm), gi)| if *gi == 0.0 { 0.0 } else { gi * (x - xm) })
+            .sum::<f64>()
+    });
+    standard_error(linear)
+}
+
 /// The stopping rule on a stream of tracked values (one vector per sample).
 #[derive(Debug, Clone)]
 pub struct StoppingRule {
+    pub kind: EnsembleRule,
     pub tol: f64,
     pub min_samples: u32,
     pub max_samples: u32,
@@ -113,8 +201,14 @@ pub struct StoppingRule {
 }
 
 impl StoppingRule {
+    /// The papers' running-mean rule.
     pub fn new(tol: f64, min_samples: u32, max_samples: u32) -> Self {
+        Self::of_kind(EnsembleRule::RunningMean, tol, min_samples, max_samples)
+    }
+
+    pub fn of_kind(kind: EnsembleRule, tol: f64, min_samples: u32, max_samples: u32) -> Self {
         Self {
+            kind,
             tol,
             min_samples,
             max_samples,
@@ -123,15 +217,26 @@ impl StoppingRule {
         }
     }
 
-    /// Feed the running means after one more sample; true = stop now.
+    /// Feed the running means after one more sample; true = stop now (running-mean rule).
     pub fn push(&mut self, running: &[f64]) -> bool {
+        self.push_with_errors(running, &vec![None; running.len()])
+    }
+
+    /// Feed the running means and their standard errors after one more sample.
+    pub fn push_with_errors(&mut self, running: &[f64], errors: &[Option<f64>]) -> bool {
         self.count += 1;
-        let settled = match &self.previous {
-            Some(prev) => prev
+        let settled = match self.kind {
+            EnsembleRule::RunningMean => match &self.previous {
+                Some(prev) => prev
+                    .iter()
+                    .zip(running)
+                    .all(|(p, q)| (q - p).abs() <= self.tol * q.abs()),
+                None => false,
+            },
+            EnsembleRule::StandardError => running
                 .iter()
-                .zip(running)
-                .all(|(p, q)| (q - p).abs() <= self.tol * q.abs()),
-            None => false,
+                .zip(errors)
+                .all(|(q, se)| se.is_some_and(|se| se <= self.tol * q.abs())),
         };
         self.previous = Some(running.to_vec());
         self.count >= self.max_samples || (settled && self.count >= self.min_samples)
@@ -162,6 +267,12 @@ pub fn samples_needed(values: &[f64], tol: f64, min_samples: u32, max_samples: u
 pub struct Evaluation {
     /// Ensemble cost (lower is better).
     pub cost: f64,
+    /// Standard error of the cost (delta method; None below two samples or on failure).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost_se: Option<f64>,
+    /// Standard error of the ensemble mean b̄_f/b0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub growth_se: Option<f64>,
     /// Samples run.
     pub samples: u32,
     /// Failed samples (only with an `on_failure` penalty; then cost = penalty).
@@ -180,29 +291,172 @@ pub struct Evaluation {
     pub radii: Vec<f64>,
 }
 
-/// Run the ensemble of `genes` with seeds from (`seed`, `generation`, `index`, sample).
-/// `cancel` aborts between samples.
-pub fn evaluate(
-    problem: &InverseProblem,
-    genes: &[f64],
-    seed: u64,
+/// What one simulation sample contributes to its ensemble.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SampleResult {
+    pub observables: Observables,
+    /// Final radii / b0 (only when the ensemble keeps them).
+    pub radii: Vec<f64>,
+}
+
+/// A sample's result, or why it failed.
+pub type SampleOutcome = Result<SampleResult, SampleFailure>;
+
+/// Run one sample: build its scene, run it, measure it.
+pub fn run_sample(
+    scenario: Result<Scenario, crate::error::ScenarioError>,
+    keep_radii: bool,
+) -> SampleOutcome {
+    let sim = scenario
+        .map_err(crate::error::SimError::from)
+        .and_then(|s| {
+            let mut sim = Simulation::new(&s)?;
+            sim.run()?;
+            Ok(sim)
+        })
+        .map_err(|e| SampleFailure(e.to_string()))?;
+    let bodies = sim.bodies();
+    let material = sim.material();
+    let growth = Growth::of(&bodies, material.rho, material.primary_radius);
+    Ok(SampleResult {
+        observables: Observables::of(&growth),
+        radii: if keep_radii {
+            bodies
+                .iter()
+                .map(|b| b.radius / material.primary_radius)
+                .collect()
+        } else {
+            Vec::new()
+        },
+    })
+}
+
+/// Where an ensemble stands after one more sample.
+#[derive(Debug)]
+pub enum Progress {
+    /// The rule wants another sample.
+    More,
+    /// The ensemble is complete.
+    Done(Evaluation),
+    /// Sample `sample` failed and the failure policy is to stop the run.
+    Failed { sample: u32, failure: SampleFailure },
+}
+
+/// One ensemble being filled, sample by sample, in sample order.
+#[derive(Debug, Clone)]
+pub struct Accumulator {
+    ensemble: EnsembleSpec,
+    cost: CostSpec,
+    on_failure: FailurePolicy,
+    rule: StoppingRule,
+    samples: Vec<Observables>,
+    sums: Observables,
+    radii: Vec<f64>,
     generation: usize,
     index: usize,
-    keep_radii: bool,
-    cancel: Option<&AtomicBool>,
-) -> Result<Evaluation, InverseError> {
-    let spec = &problem.spec;
-    evaluate_with(
-        &spec.ensemble,
-        &spec.cost,
-        spec.on_failure,
-        |sample| problem.scenario_for(genes, sample_seed(seed, generation, index, sample)),
-        |sample| sample_seed(seed, generation, index, sample),
-        &format_genes(&problem.gene_names(), genes),
-        (generation, index),
-        keep_radii,
-        cancel,
-    )
+}
+
+impl Accumulator {
+    pub fn new(
+        ensemble: &EnsembleSpec,
+        cost: &CostSpec,
+        on_failure: FailurePolicy,
+        (generation, index): (usize, usize),
+    ) -> Self {
+        Self {
+            rule: StoppingRule::of_kind(
+                ensemble.rule,
+                ensemble.tol,
+                ensemble.min_samples,
+                ensemble.max_samples,
+            ),
+            ensemble: ensemble.clone(),
+            cost: *cost,
+            on_failure,
+            samples: Vec::new(),
+            sums: Observables::default(),
+            radii: Vec::new(),
+            generation,
+            index,
+        }
+    }
+
+    /// Samples taken so far.
+    pub fn count(&self) -> u32 {
+        self.samples.len() as u32
+    }
+
+    /// The rule's least number of samples.
+    pub fn min_samples(&self) -> u32 {
+        self.ensemble.min_samples
+    }
+
+    /// The rule's cap.
+    pub fn max_samples(&self) -> u32 {
+        self.ensemble.max_samples
+    }
+
+    /// Add the next sample's outcome (samples must come in order).
+    pub fn push(&mut self, outcome: SampleOutcome) -> Progress {
+        let sample = self.count();
+        let result = match outcome {
+            Ok(r) => r,
+            Err(failure) => {
+                return match self.on_failure {
+                    FailurePolicy::Error => Progress::Failed { sample, failure },
+                    FailurePolicy::Penalty(p) => {
+                        let n = sample.max(1) as f64;
+                        Progress::Done(Evaluation {
+                            cost: p,
+                            samples: sample + 1,
+                            failures: 1,
+                            means: self.sums.scaled(1.0 / n),
+                            generation: self.generation,
+                            index: self.index,
+                            radii: std::mem::take(&mut self.radii),
+                            ..Default::default()
+                        })
+                    }
+                };
+            }
+        };
+        self.sums.add(&result.observables);
+        self.samples.push(result.observables);
+        self.radii.extend(result.radii);
+        let n = self.samples.len();
+        let means = self.sums.scaled(1.0 / n as f64);
+        let c = cost_of(&self.cost, &means);
+        let cost_se = cost_standard_error(&self.cost, &self.samples);
+        let se_of = |f: fn(&Observables) -> f64| standard_error(self.samples.iter().map(f));
+        let growth_se = se_of(|o| o.mean);
+        let (tracked, errors): (Vec<f64>, Vec<Option<f64>>) = self
+            .ensemble
+            .track
+            .iter()
+            .map(|t| match t {
+                Tracked::Cost => (c, cost_se),
+                Tracked::Mean => (means.mean, growth_se),
+                Tracked::StdDev => (means.std_dev, se_of(|o| o.std_dev)),
+                Tracked::Skewness => (means.skewness, se_of(|o| o.skewness)),
+                Tracked::Kurtosis => (means.kurtosis, se_of(|o| o.kurtosis)),
+            })
+            .unzip();
+        if self.rule.push_with_errors(&tracked, &errors) {
+            Progress::Done(Evaluation {
+                cost: c,
+                cost_se,
+                growth_se,
+                samples: n as u32,
+                failures: 0,
+                means,
+                generation: self.generation,
+                index: self.index,
+                radii: std::mem::take(&mut self.radii),
+            })
+        } else {
+            Progress::More
+        }
+    }
 }
 
 /// "name = value, …" for messages.
@@ -213,94 +467,4 @@ pub fn format_genes(names: &[String], genes: &[f64]) -> String {
         .map(|(n, x)| format!("{n} = {x:e}"))
         .collect::<Vec<_>>()
         .join(", ")
-}
-
-/// The ensemble loop, given a scenario factory per sample.
-#[allow(clippy::too_many_arguments)]
-pub fn evaluate_with(
-    ensemble: &EnsembleSpec,
-    cost: &CostSpec,
-    on_failure: FailurePolicy,
-    scenario: impl Fn(u32) -> Result<crate::scenario::Scenario, crate::error::ScenarioError>,
-    seed_of: impl Fn(u32) -> u64,
-    genes_text: &str,
-    (generation, index): (usize, usize),
-    keep_radii: bool,
-    cancel: Option<&AtomicBool>,
-) -> Result<Evaluation, InverseError> {
-    let mut rule = StoppingRule::new(ensemble.tol, ensemble.min_samples, ensemble.max_samples);
-    let mut sums = Observables::default();
-    let mut radii = Vec::new();
-    let mut sample = 0u32;
-    loop {
-        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-            return Err(InverseError::Interrupted);
-        }
-        let result = scenario(sample)
-            .map_err(crate::error::SimError::from)
-            .and_then(|s| {
-                let mut sim = Simulation::new(&s)?;
-                sim.run()?;
-                Ok(sim)
-            });
-        let sim = match result {
-            Ok(sim) => sim,
-            Err(source) => match on_failure {
-                FailurePolicy::Error => {
-                    return Err(InverseError::Sample {
-                        generation,
-                        string: index,
-                        sample,
-                        seed: seed_of(sample),
-                        genes: genes_text.to_string(),
-                        source,
-                    });
-                }
-                FailurePolicy::Penalty(p) => {
-                    let n = sample.max(1) as f64;
-                    return Ok(Evaluation {
-                        cost: p,
-                        samples: sample + 1,
-                        failures: 1,
-                        means: sums.scaled(1.0 / n),
-                        generation,
-                        index,
-                        radii,
-                    });
-                }
-            },
-        };
-        let bodies = sim.bodies();
-        let material = sim.material();
-        let growth = Growth::of(&bodies, material.rho, material.primary_radius);
-        sums.add(&Observables::of(&growth));
-        if keep_radii {
-            radii.extend(bodies.iter().map(|b| b.radius / material.primary_radius));
-        }
-        sample += 1;
-        let means = sums.scaled(1.0 / sample as f64);
-        let c = cost_of(cost, &means);
-        let tracked: Vec<f64> = ensemble
-            .track
-            .iter()
-            .map(|t| match t {
-                Tracked::Cost => c,
-                Tracked::Mean => means.mean,
-                Tracked::StdDev => means.std_dev,
-                Tracked::Skewness => means.skewness,
-                Tracked::Kurtosis => means.kurtosis,
-            })
-            .collect();
-        if rule.push(&tracked) {
-            return Ok(Evaluation {
-                cost: c,
-                samples: sample,
-                failures: 0,
-                means,
-                generation,
-                index,
-                radii,
-            });
-        }
-    }
 }

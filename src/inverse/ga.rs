@@ -13,7 +13,6 @@
 
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::ensemble::{Evaluation, derive_seed};
@@ -38,6 +37,9 @@ pub struct GenerationRow {
     pub total_evaluations: usize,
     /// Simulation samples run in this generation.
     pub samples: u64,
+    /// Standard error of the best cost (its own ensemble, delta method).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub best_cost_se: Option<f64>,
 }
 
 /// Everything needed to continue a run: saved as the checkpoint after each generation.
@@ -54,6 +56,20 @@ pub struct GaState {
     pub total_evaluations: usize,
     /// True once G generations ran or the cost reached `tol`.
     pub finished: bool,
+    /// The closing check: the best strings re-evaluated with fresh seeds, ranked by
+    /// that evaluation (empty until it ran, or when the problem asks for none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub finalists: Vec<Finalist>,
+}
+
+/// One string of the closing check.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Finalist {
+    /// Its rank among the parents of the last generation (1 = the GA's best).
+    pub ga_rank: usize,
+    pub genes: Vec<f64>,
+    /// The large ensemble of fresh seeds.
+    pub eval: Evaluation,
 }
 
 impl GaState {
@@ -66,6 +82,7 @@ impl GaState {
             history: Vec::new(),
             total_evaluations: 0,
             finished: false,
+            finalists: Vec::new(),
         }
     }
 
@@ -76,7 +93,7 @@ impl GaState {
 }
 
 /// Sort key that puts NaN last.
-fn rank_key(c: f64) -> f64 {
+pub fn rank_key(c: f64) -> f64 {
     if c.is_nan() { f64::INFINITY } else { c }
 }
 
@@ -124,21 +141,19 @@ pub fn candidates(spec: &GaSpec, state: &GaState) -> Vec<(usize, Vec<f64>)> {
     out
 }
 
-/// Run one generation: evaluate the candidates in parallel (results in index order),
-/// rank, keep the top K, rescale if due, and decide whether to stop.
+/// Run one generation: evaluate the candidates (`evaluate` gets the generation and
+/// the (index, genes) list and returns the evaluations in that order), rank, keep
+/// the top K, rescale if due, and decide whether to stop.
 /// `original` = the gene ranges of the problem (rescaled bounds never leave them).
 pub fn step(
     spec: &GaSpec,
     original: (&[f64], &[f64]),
     state: &mut GaState,
-    evaluate: impl Fn(usize, usize, &[f64]) -> Result<Evaluation, InverseError> + Sync,
+    evaluate: impl FnOnce(usize, &[(usize, Vec<f64>)]) -> Result<Vec<Evaluation>, InverseError>,
 ) -> Result<GenerationRow, InverseError> {
     let g = state.generations_done;
     let cands = candidates(spec, state);
-    let evals: Vec<Evaluation> = cands
-        .par_iter()
-        .map(|(i, genes)| evaluate(g, *i, genes))
-        .collect::<Result<_, _>>()?;
+    let evals = evaluate(g, &cands)?;
     let samples = evals.iter().map(|e| e.samples as u64).sum();
     let evaluations = evals.len();
     let mut population: Vec<Member> = state.parents.clone();
@@ -158,6 +173,7 @@ pub fn step(
     state.parents = population;
     state.total_evaluations += evaluations;
     let best_cost = state.parents[0].eval.cost;
+    let best_cost_se = state.parents[0].eval.cost_se;
     let mean_top_k =
         state.parents.iter().map(|m| m.eval.cost).sum::<f64>() / state.parents.len() as f64;
     let row = GenerationRow {
@@ -167,6 +183,7 @@ pub fn step(
         evaluations,
         total_evaluations: state.total_evaluations,
         samples,
+        best_cost_se,
     };
     state.history.push(row.clone());
     state.generations_done += 1;

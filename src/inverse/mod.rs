@@ -8,11 +8,18 @@
 //! - [`ensemble`]: the ensemble cost with the stopping rule and derived seeds;
 //! - [`ga`]: the genetic algorithm, one generation at a time;
 //! - [`checkpoint`]: the state saved after every generation (`--resume`);
+//! - [`batch`]: a generation's (or a scan's) ensembles as one batch of samples for
+//!   the task farm ([`crate::farm`]): threads here, and MPI ranks with `--features mpi`;
 //! - [`output`]: `generations.csv`, `best.json`, `best_scenario.json`, charts.
 //!
-//! Strings (and scan points) are evaluated in parallel with rayon; each simulation
-//! runs single-threaded in its worker and results are collected in index order, so
-//! every output is bit-identical for any thread count.
+//! Samples are handed out one at a time to free workers; each simulation runs
+//! single-threaded, and every ensemble takes its samples in sample order, so every
+//! output is bit-identical for any thread or rank count.
+//!
+//! **Honest winners.** A GA that ranks strings by noisy ensemble costs favours the
+//! strings whose samples happened to be lucky. After the last generation the best
+//! `reevaluate.strings` strings are re-run with `reevaluate.samples` fresh seeds each
+//! and re-ranked by that cost, reported as mean ± standard error (`best.json`).
 //!
 //! **Failed samples.** A sample can fail (cloud placement impossible, step limit,
 //! non-finite state). By default (`"on_failure": "error"`) the run stops with an
@@ -21,6 +28,7 @@
 //! cost becomes P (its ensemble stops at the failure) and `best.json` counts it in
 //! `failures`.
 
+pub mod batch;
 pub mod checkpoint;
 pub mod ensemble;
 pub mod ga;
@@ -29,13 +37,16 @@ pub mod output;
 pub mod problem;
 
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
-use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::farm::{Cluster, Workers};
+use batch::{EnsembleBatch, Job, SampleScene};
+use ensemble::Accumulator;
+
 pub use ensemble::{Evaluation, StoppingRule, derive_seed, sample_seed, splitmix64};
-pub use ga::{GaState, GenerationRow, Member};
+pub use ga::{Finalist, GaState, GenerationRow, Member};
 pub use problem::{InverseError, InverseProblem, InverseSpec};
 
 /// What the driver reports while it runs (for progress displays).
@@ -47,13 +58,17 @@ pub enum Event<'a> {
     StringDone { generation: usize, samples: u32 },
     /// A generation finished.
     GenerationDone(&'a GenerationRow),
+    /// The closing check starts: `strings` strings of `samples` samples each.
+    CheckStarted { strings: usize, samples: u32 },
 }
 
 /// How to run an inverse problem (`Default`: all cores, fresh run, no progress).
 #[derive(Default)]
 pub struct Options<'a> {
-    /// Worker threads (0 = one per core).
+    /// Worker threads (0 = one per core); per rank with a cluster.
     pub threads: usize,
+    /// The MPI ranks to share the samples with (rank 0 only; `--features mpi`).
+    pub cluster: Option<&'a Cluster>,
     /// Continue from `DIR/checkpoint.json`.
     pub resume: bool,
     /// Stop after this many generations in this call (for tests of `--resume`).
@@ -63,15 +78,9 @@ pub struct Options<'a> {
     pub progress: Option<&'a (dyn Fn(Event) + Sync)>,
 }
 
-fn pool(threads: usize) -> Result<rayon::ThreadPool, InverseError> {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| InverseError::Other(format!("thread pool: {e}")))
-}
-
 /// Run (or continue) the GA, writing outputs to `dir` and a checkpoint after every
-/// generation. Returns the final state (finished, or stopped by `stop_after`).
+/// generation, then the closing check of the best strings. Returns the final state
+/// (finished, or stopped by `stop_after`).
 pub fn optimize(
     problem: &InverseProblem,
     dir: &Path,
@@ -89,44 +98,141 @@ pub fn optimize(
     };
     let spec = &problem.spec.ga;
     let seed = spec.seed;
+    let workers = Workers {
+        threads: options.threads,
+        cluster: options.cluster,
+    };
     let progress = |e: Event| {
         if let Some(p) = options.progress {
             p(e)
         }
     };
+    let names = problem.gene_names();
     let mut ran = 0;
-    pool(options.threads)?.install(|| -> Result<(), InverseError> {
-        while !state.finished && options.stop_after.is_none_or(|n| ran < n) {
-            let g = state.generations_done;
-            let strings = if g == 0 {
-                spec.strings
-            } else {
-                spec.strings - spec.parents
-            };
-            progress(Event::GenerationStarted {
-                generation: g,
-                strings,
-            });
-            let row = ga::step(spec, (&lower, &upper), &mut state, |g, i, genes| {
-                let e = ensemble::evaluate(problem, genes, seed, g, i, true, options.cancel)?;
+    while !state.finished && options.stop_after.is_none_or(|n| ran < n) {
+        let g = state.generations_done;
+        let strings = if g == 0 {
+            spec.strings
+        } else {
+            spec.strings - spec.parents
+        };
+        progress(Event::GenerationStarted {
+            generation: g,
+            strings,
+        });
+        let row = ga::step(spec, (&lower, &upper), &mut state, |g, candidates| {
+            let jobs = candidates
+                .iter()
+                .map(|(i, genes)| {
+                    let i = *i;
+                    Job {
+                        scene: SampleScene::Genes(genes.clone()),
+                        seed_of: Box::new(move |s| sample_seed(seed, g, i, s)),
+                        keep_radii: true,
+                        accumulator: Accumulator::new(
+                            &problem.spec.ensemble,
+                            &problem.spec.cost,
+                            problem.spec.on_failure,
+                            (g, i),
+                        ),
+                        label: ensemble::format_genes(&names, genes),
+                        coordinates: (g, i),
+                    }
+                })
+                .collect();
+            let on_done = |_: usize, e: &Evaluation| {
                 progress(Event::StringDone {
                     generation: g,
                     samples: e.samples,
-                });
-                Ok(e)
-            })?;
-            checkpoint::Checkpoint::new(problem, &state).save(dir)?;
-            output::write_tables(dir, problem, &state)?;
-            progress(Event::GenerationDone(&row));
-            ran += 1;
-        }
-        Ok(())
-    })?;
+                })
+            };
+            EnsembleBatch::new(jobs)
+                .cancel_on(options.cancel)
+                .on_done(Some(&on_done))
+                .run(&workers, problem)
+                .map(|(evals, _wasted)| evals)
+        })?;
+        checkpoint::Checkpoint::new(problem, &state).save(dir)?;
+        output::write_tables(dir, problem, &state)?;
+        progress(Event::GenerationDone(&row));
+        ran += 1;
+    }
+    let check = &problem.spec.reevaluate;
+    if state.finished && state.finalists.is_empty() && check.strings > 0 {
+        state.finalists = reevaluate(problem, &state, &workers, options)?;
+        checkpoint::Checkpoint::new(problem, &state).save(dir)?;
+    }
     output::write_tables(dir, problem, &state)?;
     if state.finished {
         output::write_charts(dir, problem, &state)?;
     }
     Ok(state)
+}
+
+/// Seed of sample `sample` of the closing check of the string ranked `ga_rank`:
+/// a stream of its own, so that the check shares no sample with the GA's choice.
+pub fn check_seed(seed: u64, ga_rank: usize, sample: u32) -> u64 {
+    derive_seed(&[seed, 3, ga_rank as u64, sample as u64])
+}
+
+/// The closing check: the best strings, each with a fixed ensemble of fresh seeds,
+/// ranked by that cost (NaN last, ties by GA rank).
+fn reevaluate(
+    problem: &InverseProblem,
+    state: &GaState,
+    workers: &Workers,
+    options: &Options,
+) -> Result<Vec<Finalist>, InverseError> {
+    let check = problem.spec.reevaluate;
+    let seed = problem.spec.ga.seed;
+    let names = problem.gene_names();
+    let fixed = problem::EnsembleSpec {
+        tol: 0.0,
+        rule: problem::EnsembleRule::RunningMean,
+        min_samples: check.samples,
+        max_samples: check.samples,
+        track: vec![problem::Tracked::Cost],
+    };
+    let chosen: Vec<&Member> = state.parents.iter().take(check.strings).collect();
+    if let Some(p) = options.progress {
+        p(Event::CheckStarted {
+            strings: chosen.len(),
+            samples: check.samples,
+        });
+    }
+    let last = state.generations_done;
+    let jobs = chosen
+        .iter()
+        .enumerate()
+        .map(|(r, m)| Job {
+            scene: SampleScene::Genes(m.genes.clone()),
+            seed_of: Box::new(move |s| check_seed(seed, r + 1, s)),
+            keep_radii: false,
+            accumulator: Accumulator::new(
+                &fixed,
+                &problem.spec.cost,
+                problem.spec.on_failure,
+                (last, r),
+            ),
+            label: ensemble::format_genes(&names, &m.genes),
+            coordinates: (last, r),
+        })
+        .collect();
+    let (evals, _) = EnsembleBatch::new(jobs)
+        .cancel_on(options.cancel)
+        .run(workers, problem)?;
+    let mut finalists: Vec<Finalist> = chosen
+        .iter()
+        .zip(evals)
+        .enumerate()
+        .map(|(r, (m, eval))| Finalist {
+            ga_rank: r + 1,
+            genes: m.genes.clone(),
+            eval,
+        })
+        .collect();
+    finalists.sort_by(|a, b| ga::rank_key(a.eval.cost).total_cmp(&ga::rank_key(b.eval.cost)));
+    Ok(finalists)
 }
 
 /// One point of a one-gene scan.
@@ -143,7 +249,7 @@ pub fn scan(
     problem: &InverseProblem,
     path: &str,
     values: &[f64],
-    threads: usize,
+    workers: &Workers,
     cancel: Option<&AtomicBool>,
     progress: Option<&(dyn Fn(usize) + Sync)>,
 ) -> Result<Vec<ScanPoint>, InverseError> {
@@ -153,32 +259,37 @@ pub fn scan(
         .map_err(|e| InverseError::Other(format!("--gene {path}: {e}")))?;
     let seed = problem.spec.ga.seed;
     let spec = &problem.spec;
-    let done = std::sync::atomic::AtomicUsize::new(0);
-    pool(threads)?.install(|| {
-        values
-            .par_iter()
-            .enumerate()
-            .map(|(i, &x)| {
-                let seed_of = |s: u32| derive_seed(&[seed, 2, i as u64, s as u64]);
-                let eval = ensemble::evaluate_with(
-                    &spec.ensemble,
-                    &spec.cost,
-                    spec.on_failure,
-                    |s| problem.scenario_with(path, x, seed_of(s)),
-                    seed_of,
-                    &format!("{path} = {x:e}"),
-                    (0, i),
-                    false,
-                    cancel,
-                )?;
-                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                if let Some(p) = progress {
-                    p(n)
-                }
-                Ok(ScanPoint { value: x, eval })
-            })
-            .collect()
-    })
+    let jobs = values
+        .iter()
+        .enumerate()
+        .map(|(i, &x)| Job {
+            scene: SampleScene::Field {
+                path: path.to_string(),
+                value: x,
+            },
+            seed_of: Box::new(move |s| derive_seed(&[seed, 2, i as u64, s as u64])),
+            keep_radii: false,
+            accumulator: Accumulator::new(&spec.ensemble, &spec.cost, spec.on_failure, (0, i)),
+            label: format!("{path} = {x:e}"),
+            coordinates: (0, i),
+        })
+        .collect();
+    let done = AtomicUsize::new(0);
+    let on_done = |_: usize, _: &Evaluation| {
+        let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+        if let Some(p) = progress {
+            p(n)
+        }
+    };
+    let (evals, _) = EnsembleBatch::new(jobs)
+        .cancel_on(cancel)
+        .on_done(Some(&on_done))
+        .run(workers, problem)?;
+    Ok(values
+        .iter()
+        .zip(evals)
+        .map(|(&value, eval)| ScanPoint { value, eval })
+        .collect())
 }
 
 /// Write `scan.csv` and the chart `scan.{png,svg}` (b̄_f/b0 against the scanned value).

@@ -1,9 +1,16 @@
 //! Outputs of an inverse run, all written from the GA state alone (so a resumed run
 //! writes the same files): `generations.csv`, `best.json` (top K in real units, the
-//! layout of P04 Tables 1–3 / P02 Table 1), `best_scenario.json` (the winner, ready
-//! for `agglo run`, seeded with its first ensemble sample), and the charts
-//! `convergence.{png,svg}` (P04 Fig. 4 / P02 Fig. 4) and `best_radii.{png,svg}`
+//! layout of P04 Tables 1–3 / P02 Table 1, each cost with its standard error, then
+//! the closing check's re-ranking), `best_scenario.json` (the winner — of the
+//! closing check when there is one — ready for `agglo run`, seeded with its first
+//! sample), and the charts `convergence.{png,svg}` (P04 Fig. 4 / P02 Fig. 4, with
+//! ± 1 standard error bars and the closing check) and `best_radii.{png,svg}`
 //! (histogram of final radii over the best string's ensemble, P02 Fig. 5).
+//!
+//! Which figures compare with the papers' tables: `top` is ranked by the GA's own
+//! ensembles, stopped by the papers' rule — the way P04 Table 3 and P02 Table 1 were
+//! made. `check` re-runs the best strings on fresh seeds: its costs are the ones to
+//! believe.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -14,8 +21,9 @@ use serde::Serialize;
 
 use crate::charts::{FONT, Figure, save_png_and_svg};
 
+use super::check_seed;
 use super::ensemble::sample_seed;
-use super::ga::{GaState, GenerationRow};
+use super::ga::{Finalist, GaState, GenerationRow};
 use super::problem::{CostSpec, InverseError, InverseProblem};
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> InverseError + '_ {
@@ -28,19 +36,20 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> InverseError + '_ {
 /// `generations.csv`: one row per generation (floats in shortest round-trip form).
 pub fn generations_csv(history: &[GenerationRow]) -> String {
     let mut s = String::from(
-        "generation,best_cost,mean_top_k,evaluations,total_evaluations,samples,samples_per_string\n",
+        "generation,best_cost,mean_top_k,evaluations,total_evaluations,samples,samples_per_string,best_cost_se\n",
     );
     for r in history {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{}",
             r.generation,
             r.best_cost,
             r.mean_top_k,
             r.evaluations,
             r.total_evaluations,
             r.samples,
-            r.samples as f64 / r.evaluations.max(1) as f64
+            r.samples as f64 / r.evaluations.max(1) as f64,
+            r.best_cost_se.map(|x| x.to_string()).unwrap_or_default()
         );
     }
     s
@@ -59,8 +68,11 @@ pub struct Ranked {
     pub rank: usize,
     pub genes: Vec<GeneValue>,
     pub cost: f64,
-    /// Ensemble mean b_f / b0.
+    /// Standard error of the cost (delta method over the ensemble's samples).
+    pub cost_se: Option<f64>,
+    /// Ensemble mean b_f / b0 and its standard error.
     pub growth_ratio: f64,
+    pub growth_se: Option<f64>,
     /// n_f = (b̄_f / b0)³.
     pub n_f: f64,
     /// Ensemble mean σ/b0, skewness m_3, kurtosis m_4 of the final radii.
@@ -75,6 +87,36 @@ pub struct Ranked {
     pub seeds: Vec<u64>,
 }
 
+/// One string of the closing check in `best.json`.
+#[derive(Debug, Serialize)]
+pub struct Checked {
+    /// Rank by the check's cost (1 = the winner).
+    pub rank: usize,
+    /// Rank by the GA's own ensemble.
+    pub ga_rank: usize,
+    pub genes: Vec<GeneValue>,
+    pub cost: f64,
+    pub cost_se: Option<f64>,
+    pub growth_ratio: f64,
+    pub growth_se: Option<f64>,
+    pub n_f: f64,
+    pub samples: u32,
+    pub failures: u32,
+    /// The GA's own figures for the same string.
+    pub ga_cost: f64,
+    pub ga_cost_se: Option<f64>,
+    pub ga_samples: u32,
+    /// Sample i of the check ran with seed `seeds[i]`.
+    pub seeds: Vec<u64>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct CheckFile {
+    pub strings: usize,
+    pub samples_per_string: u32,
+    pub ranked: Vec<Checked>,
+}
+
 #[derive(Debug, Serialize)]
 pub struct BestFile<'a> {
     pub problem: &'a str,
@@ -82,11 +124,66 @@ pub struct BestFile<'a> {
     pub generations: usize,
     pub total_evaluations: usize,
     pub finished: bool,
+    /// Ranked by the GA's own ensembles (comparable with the papers' tables).
     pub top: Vec<Ranked>,
+    /// The closing check: the best strings re-run on fresh seeds and re-ranked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub check: Option<CheckFile>,
+}
+
+fn gene_values(problem: &InverseProblem, genes: &[f64]) -> Vec<GeneValue> {
+    problem
+        .gene_names()
+        .iter()
+        .zip(&problem.spec.genes)
+        .zip(genes)
+        .map(|((n, g), &v)| GeneValue {
+            name: n.clone(),
+            path: g.path.clone(),
+            value: v,
+        })
+        .collect()
+}
+
+fn check_file(problem: &InverseProblem, state: &GaState) -> Option<CheckFile> {
+    if state.finalists.is_empty() {
+        return None;
+    }
+    let seed = problem.spec.ga.seed;
+    let ranked = state
+        .finalists
+        .iter()
+        .enumerate()
+        .map(|(r, f): (usize, &Finalist)| {
+            let ga = &state.parents[f.ga_rank - 1].eval;
+            Checked {
+                rank: r + 1,
+                ga_rank: f.ga_rank,
+                genes: gene_values(problem, &f.genes),
+                cost: f.eval.cost,
+                cost_se: f.eval.cost_se,
+                growth_ratio: f.eval.means.mean,
+                growth_se: f.eval.growth_se,
+                n_f: f.eval.means.mean.powi(3),
+                samples: f.eval.samples,
+                failures: f.eval.failures,
+                ga_cost: ga.cost,
+                ga_cost_se: ga.cost_se,
+                ga_samples: ga.samples,
+                seeds: (0..f.eval.samples)
+                    .map(|i| check_seed(seed, f.ga_rank, i))
+                    .collect(),
+            }
+        })
+        .collect();
+    Some(CheckFile {
+        strings: state.finalists.len(),
+        samples_per_string: problem.spec.reevaluate.samples,
+        ranked,
+    })
 }
 
 pub fn best_file<'a>(problem: &'a InverseProblem, state: &GaState) -> BestFile<'a> {
-    let names = problem.gene_names();
     let seed = problem.spec.ga.seed;
     let top = state
         .parents
@@ -94,18 +191,11 @@ pub fn best_file<'a>(problem: &'a InverseProblem, state: &GaState) -> BestFile<'
         .enumerate()
         .map(|(r, m)| Ranked {
             rank: r + 1,
-            genes: names
-                .iter()
-                .zip(&problem.spec.genes)
-                .zip(&m.genes)
-                .map(|((n, g), &v)| GeneValue {
-                    name: n.clone(),
-                    path: g.path.clone(),
-                    value: v,
-                })
-                .collect(),
+            genes: gene_values(problem, &m.genes),
             cost: m.eval.cost,
+            cost_se: m.eval.cost_se,
             growth_ratio: m.eval.means.mean,
+            growth_se: m.eval.growth_se,
             n_f: m.eval.means.mean.powi(3),
             std_dev_ratio: m.eval.means.std_dev,
             skewness: m.eval.means.skewness,
@@ -126,6 +216,7 @@ pub fn best_file<'a>(problem: &'a InverseProblem, state: &GaState) -> BestFile<'
         total_evaluations: state.total_evaluations,
         finished: state.finished,
         top,
+        check: check_file(problem, state),
     }
 }
 
@@ -142,17 +233,41 @@ pub fn write_tables(
     let text =
         serde_json::to_string_pretty(&best).map_err(|e| InverseError::Other(e.to_string()))?;
     std::fs::write(&p, text + "\n").map_err(io(&p))?;
-    if let Some(m) = state.best() {
-        let seed = sample_seed(problem.spec.ga.seed, m.eval.generation, m.eval.index, 0);
+    let seed = problem.spec.ga.seed;
+    // The winner of the closing check when it ran, else the GA's best.
+    let winner = match (state.finalists.first(), state.best()) {
+        (Some(f), _) => Some((
+            &f.genes,
+            check_seed(seed, f.ga_rank, 0),
+            format!(
+                "Winner of the closing check of inverse problem `{}` after {} generations: \
+                 cost {} ± {} (1 s.e.) over {} fresh samples (GA rank {}; seeds in best.json, \
+                 this file uses the first).",
+                problem.spec.name,
+                state.generations_done,
+                f.eval.cost,
+                f.eval.cost_se.unwrap_or(f64::NAN),
+                f.eval.samples,
+                f.ga_rank
+            ),
+        )),
+        (None, Some(m)) => Some((
+            &m.genes,
+            sample_seed(seed, m.eval.generation, m.eval.index, 0),
+            format!(
+                "Best string of inverse problem `{}` after {} generations: ensemble cost {} over {} samples \
+                 (seeds in best.json; this file uses the first).",
+                problem.spec.name, state.generations_done, m.eval.cost, m.eval.samples
+            ),
+        )),
+        (None, None) => None,
+    };
+    if let Some((genes, seed, description)) = winner {
         let mut scenario = problem
-            .scenario_for(&m.genes, seed)
+            .scenario_for(genes, seed)
             .map_err(|e| InverseError::Other(format!("best scenario: {e}")))?;
         scenario.name = format!("{}_best", problem.spec.name);
-        scenario.description = format!(
-            "Best string of inverse problem `{}` after {} generations: ensemble cost {} over {} samples \
-             (seeds in best.json; this file uses the first).",
-            problem.spec.name, state.generations_done, m.eval.cost, m.eval.samples
-        );
+        scenario.description = description;
         let p = dir.join("best_scenario.json");
         std::fs::write(&p, scenario.to_json() + "\n").map_err(io(&p))?;
     }
@@ -173,6 +288,7 @@ pub fn write_charts(
         &Convergence {
             title: format!("{}: cost per generation", problem.spec.name),
             history: &state.history,
+            finalists: &state.finalists,
         },
     )
     .map_err(chart)?;
@@ -205,6 +321,8 @@ fn err<E: std::fmt::Display>(e: E) -> anyhow::Error {
 struct Convergence<'a> {
     title: String,
     history: &'a [GenerationRow],
+    /// Drawn one generation to the right of the last, as "check".
+    finalists: &'a [Finalist],
 }
 
 impl Figure for Convergence<'_> {
@@ -213,8 +331,32 @@ impl Figure for Convergence<'_> {
         DB::ErrorType: 'static,
     {
         let h = self.history;
-        let n = h.len().max(1) as f64;
-        let values: Vec<f64> = h.iter().flat_map(|r| [r.best_cost, r.mean_top_k]).collect();
+        let n = h.len().max(1) as f64 + if self.finalists.is_empty() { 0.0 } else { 1.0 };
+        let se = |c: f64, e: Option<f64>| (c - e.unwrap_or(0.0), c + e.unwrap_or(0.0));
+        // (x, cost, low, high) of the best per generation and of the checked strings.
+        let bars: Vec<(f64, f64, f64, f64)> = h
+            .iter()
+            .map(|r| {
+                let (a, b) = se(r.best_cost, r.best_cost_se);
+                (r.generation as f64, r.best_cost, a, b)
+            })
+            .collect();
+        let checked: Vec<(f64, f64, f64, f64)> = self
+            .finalists
+            .iter()
+            .enumerate()
+            .map(|(k, f)| {
+                let (a, b) = se(f.eval.cost, f.eval.cost_se);
+                // Side by side around the check's column, the winner first.
+                let x = h.len() as f64 + 0.3 * (k as f64 / self.finalists.len() as f64 - 0.4);
+                (x, f.eval.cost, a, b)
+            })
+            .collect();
+        let values: Vec<f64> = h
+            .iter()
+            .flat_map(|r| [r.best_cost, r.mean_top_k])
+            .chain(bars.iter().chain(&checked).flat_map(|b| [b.2, b.3]))
+            .collect();
         let hi = values
             .iter()
             .cloned()
@@ -235,6 +377,9 @@ impl Figure for Convergence<'_> {
             .map(|r| (r.generation as f64, r.mean_top_k))
             .collect();
         let (lo, hi) = if hi >= lo { (lo, hi) } else { (0.0, 1.0) };
+        // Error bars clipped to the drawn range (a log axis has no room below 0).
+        let floor = if log { lo * 0.8 } else { f64::MIN };
+        let clip = |b: &(f64, f64, f64, f64)| (b.0, b.1, b.2.max(floor), b.3);
         let pad = if hi > lo {
             0.05 * (hi - lo)
         } else {
@@ -266,6 +411,30 @@ impl Figure for Convergence<'_> {
                 chart
                     .draw_series(best.iter().map(|&p| Circle::new(p, 3, BLUE.filled())))
                     .map_err(err)?;
+                chart
+                    .draw_series(bars.iter().map(clip).map(|(x, y, a, b)| {
+                        ErrorBar::new_vertical(x, a, y, b, BLUE.stroke_width(1), 6)
+                    }))
+                    .map_err(err)?
+                    .label("best ± 1 s.e. (its own ensemble)")
+                    .legend(|(x, y)| {
+                        PathElement::new(vec![(x + 10, y - 6), (x + 10, y + 6)], BLUE)
+                    });
+                if !checked.is_empty() {
+                    let green = RGBColor(0, 140, 60);
+                    chart
+                        .draw_series(checked.iter().map(clip).map(|(x, y, a, b)| {
+                            ErrorBar::new_vertical(x, a, y, b, green.stroke_width(2), 6)
+                        }))
+                        .map_err(err)?
+                        .label("closing check: best strings on fresh seeds, ± 1 s.e.")
+                        .legend(move |(x, y)| {
+                            PathElement::new(
+                                vec![(x + 10, y - 6), (x + 10, y + 6)],
+                                green.stroke_width(2),
+                            )
+                        });
+                }
                 chart
                     .draw_series(LineSeries::new(mean.clone(), RED.stroke_width(2)))
                     .map_err(err)?

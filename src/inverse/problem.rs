@@ -20,10 +20,15 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::error::{ScenarioError, SimError, ValidationIssue};
+use crate::error::{ScenarioError, ValidationIssue};
 use crate::scenario::{Scenario, Stepping};
 
 use super::genes::{get_path, set_path};
+
+/// Why one simulation sample failed, as text: samples can run on another MPI rank.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, thiserror::Error)]
+#[error("{0}")]
+pub struct SampleFailure(pub String);
 
 /// An inverse-problem file as written.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -45,6 +50,39 @@ pub struct InverseSpec {
     /// What a failed simulation sample does.
     #[serde(default)]
     pub on_failure: FailurePolicy,
+    /// After the last generation, re-evaluate the best strings with large ensembles
+    /// of fresh seeds and re-rank them by that (the GA's own costs carry the noise
+    /// it selected for).
+    #[serde(default)]
+    pub reevaluate: Reevaluate,
+}
+
+/// The closing check of the best strings (`"reevaluate"`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Reevaluate {
+    /// How many of the best strings (at most K, the parents kept); 0 = no check.
+    #[serde(default = "four")]
+    pub strings: usize,
+    /// Samples per string (fixed, ≥ 2 so that a standard error exists).
+    #[serde(default = "hundred")]
+    pub samples: u32,
+}
+
+fn four() -> usize {
+    4
+}
+fn hundred() -> u32 {
+    100
+}
+
+impl Default for Reevaluate {
+    fn default() -> Self {
+        Self {
+            strings: four(),
+            samples: hundred(),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -138,8 +176,12 @@ pub enum Tracked {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EnsembleSpec {
-    /// Stop when |Q̄_{E+1} − Q̄_E| ≤ tol |Q̄_{E+1}| for every tracked Q.
+    /// `running_mean` (the papers): stop when |Q̄_{E+1} − Q̄_E| ≤ tol |Q̄_{E+1}|;
+    /// `standard_error`: stop when the standard error of Q̄ ≤ tol |Q̄| — for every tracked Q.
     pub tol: f64,
+    /// Which stopping rule `tol` applies to.
+    #[serde(default)]
+    pub rule: EnsembleRule,
     #[serde(default = "two")]
     pub min_samples: u32,
     pub max_samples: u32,
@@ -152,6 +194,19 @@ fn two() -> u32 {
 }
 fn default_track() -> Vec<Tracked> {
     vec![Tracked::Cost]
+}
+
+/// When an ensemble has enough samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EnsembleRule {
+    /// P04 (8.1) / P02 (25): the running mean moved by at most TOL relative. Two
+    /// samples that happen to agree stop it, so a cost carries sampling noise.
+    #[default]
+    RunningMean,
+    /// The standard error of the running mean is at most TOL relative (≥ 2 samples;
+    /// the cost's by the delta method).
+    StandardError,
 }
 
 /// Genetic-algorithm settings (docs/model.md §12).
@@ -229,7 +284,7 @@ pub enum InverseError {
         seed: u64,
         genes: String,
         #[source]
-        source: SimError,
+        source: SampleFailure,
     },
     #[error("{0}")]
     Checkpoint(String),
@@ -445,6 +500,22 @@ impl InverseProblem {
                     "allowed ≥ min_samples = {} (got {})",
                     e.min_samples, e.max_samples
                 ),
+            );
+        }
+        if e.rule == EnsembleRule::StandardError && e.min_samples < 2 {
+            push(
+                "ensemble.min_samples".into(),
+                format!(
+                    "allowed ≥ 2 with the standard_error rule (got {})",
+                    e.min_samples
+                ),
+            );
+        }
+        let r = &s.reevaluate;
+        if r.strings > 0 && r.samples < 2 {
+            push(
+                "reevaluate.samples".into(),
+                format!("allowed ≥ 2 (got {}), or set strings to 0", r.samples),
             );
         }
         if e.track.is_empty() {

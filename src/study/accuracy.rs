@@ -19,9 +19,14 @@
 //! the seed-to-seed spread. The reference is therefore also run over a few seeds;
 //! the mean error of those realisations against the reference seed is the **noise
 //! level**: an error below it reads as "within noise".
+//!
+//! The runs are independent tasks of the farm (`crate::farm`): one thread by
+//! default, so that the timings do not share cores; with `--features mpi` each rank
+//! times its own runs (put one rank per node, or read the times with that in mind).
 
 use std::path::Path;
 
+use crate::farm::Workers;
 use crate::prelude::*;
 use crate::scenario::{ContactRule, CoolingMethod, Core, SolverKind, Stepping};
 
@@ -111,7 +116,7 @@ impl Default for AccuracyOptions {
 }
 
 /// What one setting produced.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Measurement {
     /// Median / min / max wall time of the repeats [s].
     pub wall_seconds: f64,
@@ -445,14 +450,52 @@ pub fn measure(scenario: &Scenario, repeats: usize) -> anyhow::Result<Measuremen
     Ok(m)
 }
 
+/// One run of the study, as a task of the farm: the scene as JSON (postcard cannot
+/// carry the scenario's optional fields) and its timed repeats.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct MeasureTask {
+    pub scenario_json: String,
+    pub repeats: usize,
+}
+
+impl MeasureTask {
+    fn of(scenario: &Scenario, repeats: usize) -> Self {
+        Self {
+            scenario_json: scenario.to_json(),
+            repeats,
+        }
+    }
+}
+
+/// The worker function of the study (on any thread or rank).
+pub fn measure_task(task: &MeasureTask) -> Result<Measurement, String> {
+    let scenario = Scenario::from_json(&task.scenario_json).map_err(|e| e.to_string())?;
+    measure(&scenario, task.repeats).map_err(|e| format!("{e:#}"))
+}
+
+fn measure_all(workers: &Workers, tasks: Vec<MeasureTask>) -> anyhow::Result<Vec<Measurement>> {
+    crate::farm::map(workers, tasks, &measure_task)?
+        .into_iter()
+        .map(|r| r.map_err(|e| anyhow::anyhow!(e)))
+        .collect()
+}
+
 /// Run the whole study on `base`; `progress` receives one line per finished run.
+/// The runs are handed out to `workers` (the reference first, then every other run);
+/// give it one thread unless the timings may share the cores.
 pub fn run_accuracy(
     base: &Scenario,
     options: &AccuracyOptions,
+    workers: &Workers,
     mut progress: impl FnMut(&str),
 ) -> anyhow::Result<AccuracyStudy> {
     let reference_s = reference_scenario(base);
-    let reference = measure(&reference_s, options.repeats)?;
+    let reference = measure_all(
+        workers,
+        vec![MeasureTask::of(&reference_s, options.repeats)],
+    )?
+    .pop()
+    .ok_or_else(|| anyhow::anyhow!("the reference run returned nothing"))?;
     if let Some(f) = &reference.failure {
         anyhow::bail!("the reference run failed: {f}");
     }
@@ -461,22 +504,38 @@ pub fn run_accuracy(
         reference.steps, reference.growth_ratio, reference.final_bodies, reference.wall_seconds
     ));
 
-    // Noise band: the reference over other seeds.
+    // Everything else at once: the noise band (the reference over other seeds) and the ladder.
+    let noise_seeds: Vec<u64> = (1..options.seeds.max(1))
+        .map(|k| base.seed.wrapping_add(k as u64))
+        .collect();
+    let variants = ladder(base, reference.steps, options);
+    let mut tasks: Vec<MeasureTask> = noise_seeds
+        .iter()
+        .map(|&seed| {
+            let mut s = reference_s.clone();
+            s.seed = seed;
+            MeasureTask::of(&s, 1)
+        })
+        .collect();
+    tasks.extend(
+        variants
+            .iter()
+            .map(|v| MeasureTask::of(&v.scenario, options.repeats)),
+    );
+    let mut measured = measure_all(workers, tasks)?.into_iter();
+
     let mut noise = NoiseBand {
         seeds: vec![base.seed],
         measurements: vec![reference.clone()],
         ..Default::default()
     };
-    for k in 1..options.seeds.max(1) {
-        let mut s = reference_s.clone();
-        s.seed = base.seed.wrapping_add(k as u64);
-        let m = measure(&s, 1)?;
+    for (&seed, m) in noise_seeds.iter().zip(measured.by_ref()) {
         let e = Errors::between(&m, &reference);
         progress(&format!(
-            "reference seed {}: b_f/b0 = {:.4}, N = {}",
-            s.seed, m.growth_ratio, m.final_bodies
+            "reference seed {seed}: b_f/b0 = {:.4}, N = {}",
+            m.growth_ratio, m.final_bodies
         ));
-        noise.seeds.push(s.seed);
+        noise.seeds.push(seed);
         noise.errors.push(e);
         noise.measurements.push(m);
     }
@@ -504,8 +563,7 @@ pub fn run_accuracy(
         errors: Errors::between(&reference, &reference),
         measurement: reference.clone(),
     }];
-    for variant in ladder(base, reference.steps, options) {
-        let m = measure(&variant.scenario, options.repeats)?;
+    for (variant, m) in variants.into_iter().zip(measured) {
         let errors = Errors::between(&m, &reference);
         progress(&format!(
             "{} {}: {} steps, b_f/b0 = {:.4}, error {:.2e}, {:.3} s{}",

@@ -1,0 +1,324 @@
+//! The batch commands over MPI (`cargo test --features mpi`; needs `mpirun`).
+//!
+//! `mpirun --oversubscribe -n 3 agglo optimize|scan|study accuracy` must write the
+//! same bytes as one process; a killed job must leave a checkpoint that `--resume`
+//! (with another rank count) finishes to those same bytes; a failing sample must be
+//! reported once, by rank 0, and stop every rank.
+#![cfg(feature = "mpi")]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+fn agglo() -> &'static str {
+    env!("CARGO_BIN_EXE_agglo")
+}
+
+/// `mpirun -n ranks agglo args…`, allowed to run as root and on more ranks than cores
+/// (CI machines have two).
+fn mpirun(ranks: usize) -> Command {
+    let mut c = Command::new("mpirun");
+    c.args(["--oversubscribe", "-n", &ranks.to_string(), agglo()])
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
+    c
+}
+
+fn check(out: Output, what: &str) -> Output {
+    assert!(
+        out.status.success(),
+        "{what} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// A small P02-like problem: 30 grains, 60 fixed steps, `generations` generations.
+fn write_problem(dir: &Path, generations: usize, extra: &str) -> PathBuf {
+    let text = format!(
+        r#"{{
+  "name": "mpi_tiny",
+  "base": {{
+    "name": "mpi_tiny_base", "seed": 1,
+    "box": {{ "half_width": 6.5e-6 }},
+    "cloud": {{ "count": 30, "size_ratio": 0.633, "v_rel": [4.3, 0, 0], "velocity_distribution": "positive" }},
+    "material": {{ "rho": 6141.898, "H0": 67.188e6, "C": 1279.542, "Q": 707351, "alpha": 5940883.989,
+                  "mu0": 0.307, "epsilon": 1.0, "theta0": 330.652, "theta_s": 330.652 }},
+    "impact": {{ "a0": 0.01, "af": 1.0, "beta": 1e-6, "duration": "p02", "friction_scales_with_adhesion": true }},
+    "time": {{ "end": 2.7e-4, "stepping": {{ "fixed": {{ "dt": 1e-6 }} }} {extra} }}
+  }},
+  "genes": [
+    {{ "name": "v0", "path": "cloud.v_rel.0", "min": 0.5, "max": 20 }},
+    {{ "name": "s", "path": "cloud.size_ratio", "min": 0.4, "max": 0.8 }}
+  ],
+  "end_time": {{ "p02": {{ "steps": 60 }} }},
+  "cost": {{ "pi02": {{ "target_ratio": 2 }} }},
+  "ensemble": {{ "tol": 1e-3, "min_samples": 2, "max_samples": 8, "track": ["mean"] }},
+  "ga": {{ "strings": 10, "parents": 4, "generations": {generations}, "rescale_every": 2, "shrink": 0.5, "seed": 7 }},
+  "reevaluate": {{ "strings": 2, "samples": 6 }}
+}}"#
+    );
+    let path = dir.join("problem.json");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+const OUTPUTS: [&str; 4] = [
+    "generations.csv",
+    "best.json",
+    "best_scenario.json",
+    "checkpoint.json",
+];
+
+fn assert_same_files(a: &Path, b: &Path, files: &[&str], what: &str) {
+    for f in files {
+        let (x, y) = (std::fs::read(a.join(f)), std::fs::read(b.join(f)));
+        let (x, y) = (
+            x.unwrap_or_else(|e| panic!("{}: {e}", a.join(f).display())),
+            y.unwrap_or_else(|e| panic!("{}: {e}", b.join(f).display())),
+        );
+        assert!(x == y, "{f} differs: {what}");
+    }
+}
+
+fn single_process_optimize(problem: &Path, out: &Path) {
+    check(
+        Command::new(agglo())
+            .args(["optimize", "-q", "--threads", "1"])
+            .arg(problem)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap(),
+        "single-process optimize",
+    );
+}
+
+#[test]
+fn optimize_on_three_ranks_writes_the_bytes_of_one_process() {
+    let tmp = tempfile::tempdir().unwrap();
+    let problem = write_problem(tmp.path(), 4, "");
+    let one = tmp.path().join("one");
+    single_process_optimize(&problem, &one);
+    let three = tmp.path().join("three");
+    let out = check(
+        mpirun(3)
+            .args(["optimize", "--out"])
+            .arg(&three)
+            .arg(&problem)
+            .output()
+            .unwrap(),
+        "mpirun -n 3 optimize",
+    );
+    assert_same_files(&one, &three, &OUTPUTS, "1 process vs 3 ranks");
+    // The other ranks did compute: rank 0 reports what it sent them.
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("MPI: 3 ranks"))
+        .unwrap_or_else(|| panic!("no MPI report in:\n{stdout}"));
+    let sent: u64 = line
+        .split(" sent to other ranks")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("cannot read the task count in `{line}`"));
+    assert!(sent > 0, "no task reached another rank: {line}");
+}
+
+#[test]
+fn scan_and_accuracy_study_on_three_ranks_match_one_process() {
+    let tmp = tempfile::tempdir().unwrap();
+    let problem = write_problem(tmp.path(), 1, "");
+    let scan = |cmd: &mut Command, out: &Path| {
+        cmd.args([
+            "scan",
+            "-q",
+            "--gene",
+            "cloud.v_rel.0",
+            "--from",
+            "1",
+            "--to",
+            "12",
+        ])
+        .args(["--points", "5", "--out"])
+        .arg(out)
+        .arg(&problem)
+        .output()
+        .unwrap()
+    };
+    let (a, b) = (tmp.path().join("scan1"), tmp.path().join("scan3"));
+    check(scan(&mut Command::new(agglo()), &a), "scan");
+    check(scan(&mut mpirun(3), &b), "mpirun scan");
+    assert_same_files(&a, &b, &["scan.csv"], "scan: 1 process vs 3 ranks");
+
+    // The study's timings differ from run to run; every other column must not.
+    let two_body = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/two_body.json");
+    let study = |cmd: &mut Command, out: &Path| {
+        cmd.args([
+            "study",
+            "accuracy",
+            "--repeats",
+            "1",
+            "--seeds",
+            "2",
+            "--out",
+        ])
+        .arg(out)
+        .arg(&two_body)
+        .output()
+        .unwrap()
+    };
+    let (a, b) = (tmp.path().join("acc1"), tmp.path().join("acc3"));
+    check(study(&mut Command::new(agglo()), &a), "study accuracy");
+    check(study(&mut mpirun(3), &b), "mpirun study accuracy");
+    let without_times = |dir: &Path| -> Vec<String> {
+        let text = std::fs::read_to_string(dir.join("accuracy.csv")).unwrap();
+        let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+        let timed: Vec<usize> = header
+            .iter()
+            .enumerate()
+            .filter(|(_, h)| h.starts_with("wall"))
+            .map(|(i, _)| i)
+            .collect();
+        assert!(!timed.is_empty());
+        text.lines()
+            .map(|l| {
+                l.split(',')
+                    .enumerate()
+                    .filter(|(i, _)| !timed.contains(i))
+                    .map(|(_, c)| c)
+                    .collect::<Vec<_>>()
+                    .join(",")
+            })
+            .collect()
+    };
+    let (x, y) = (without_times(&a), without_times(&b));
+    assert!(x.len() > 5, "study too short: {x:?}");
+    assert_eq!(x, y, "accuracy.csv (timings aside): 1 process vs 3 ranks");
+}
+
+/// The environment variable MPI gives each rank its number.
+fn rank_of(pid: u32) -> Option<usize> {
+    let env = std::fs::read(format!("/proc/{pid}/environ")).ok()?;
+    env.split(|&b| b == 0)
+        .filter_map(|kv| std::str::from_utf8(kv).ok())
+        .find_map(|kv| kv.strip_prefix("OMPI_COMM_WORLD_RANK="))
+        .and_then(|r| r.parse().ok())
+}
+
+/// Pids of the agglo processes writing to `out`.
+fn ranks_writing_to(out: &Path) -> Vec<(u32, usize)> {
+    let needle = out.display().to_string();
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(cmd) = std::fs::read(format!("/proc/{pid}/cmdline")) else {
+            continue;
+        };
+        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+        if cmd.starts_with(agglo()) && cmd.contains(&needle) {
+            if let Some(rank) = rank_of(pid) {
+                found.push((pid, rank));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn a_killed_rank_leaves_a_checkpoint_that_resume_finishes_on_any_rank_count() {
+    let tmp = tempfile::tempdir().unwrap();
+    let problem = write_problem(tmp.path(), 30, "");
+    let whole = tmp.path().join("whole");
+    single_process_optimize(&problem, &whole);
+
+    let killed = tmp.path().join("killed");
+    let mut job = mpirun(3)
+        .args(["optimize", "-q", "--out"])
+        .arg(&killed)
+        .arg(&problem)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Wait for the first checkpoint, then kill a rank that is not rank 0.
+    let start = Instant::now();
+    while !killed.join("checkpoint.json").exists() {
+        assert!(start.elapsed() < Duration::from_secs(60), "no checkpoint");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let ranks = ranks_writing_to(&killed);
+    let (victim, _) = *ranks
+        .iter()
+        .find(|(_, r)| *r != 0)
+        .unwrap_or_else(|| panic!("no worker rank found among {ranks:?}"));
+    unsafe {
+        libc::kill(victim as i32, libc::SIGKILL);
+    }
+    let status = job.wait().unwrap();
+    let generations_done = |dir: &Path| {
+        std::fs::read_to_string(dir.join("generations.csv"))
+            .map(|t| t.lines().count() - 1)
+            .unwrap_or(0)
+    };
+    assert!(
+        !status.success(),
+        "the job survived a killed rank (it had finished {} of 30 generations)",
+        generations_done(&killed)
+    );
+    assert!(
+        generations_done(&killed) < 30,
+        "the job finished before the kill"
+    );
+    // Continue on 2 ranks, then compare with the uninterrupted single process.
+    check(
+        mpirun(2)
+            .args(["optimize", "-q", "--resume", "--out"])
+            .arg(&killed)
+            .arg(&problem)
+            .output()
+            .unwrap(),
+        "resume on 2 ranks",
+    );
+    assert_same_files(
+        &whole,
+        &killed,
+        &OUTPUTS,
+        "uninterrupted vs killed + resumed",
+    );
+}
+
+#[test]
+fn a_failing_sample_is_reported_once_and_stops_every_rank() {
+    let tmp = tempfile::tempdir().unwrap();
+    // One step allowed, adaptive steps: every sample fails with the step limit.
+    let problem = write_problem(tmp.path(), 3, r#", "max_steps": 1"#);
+    let text = std::fs::read_to_string(&problem)
+        .unwrap()
+        .replace(r#""fixed": { "dt": 1e-6 }"#, r#""adaptive": {}"#)
+        .replace(r#""end_time": { "p02": { "steps": 60 } },"#, "");
+    std::fs::write(&problem, text).unwrap();
+    let start = Instant::now();
+    let out = mpirun(3)
+        .args(["optimize", "-q", "--out"])
+        .arg(tmp.path().join("out"))
+        .arg(&problem)
+        .output()
+        .unwrap();
+    assert!(
+        !out.status.success(),
+        "a failing sample did not fail the job"
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        stderr.matches("failed with genes").count(),
+        1,
+        "the failure should be reported exactly once:\n{stderr}"
+    );
+    assert!(stderr.contains("max_steps"), "{stderr}");
+    assert!(start.elapsed() < Duration::from_secs(60));
+}
