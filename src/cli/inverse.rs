@@ -32,6 +32,10 @@ pub struct OptimizeArgs {
     /// Stop after this many generations (the run can be continued with --resume).
     #[arg(long, hide = true)]
     pub stop_after: Option<usize>,
+    /// Write the compute time of every sample here (CSV: generation, string, sample,
+    /// seconds, used): where the time goes, and what a cluster would make of it.
+    #[arg(long, value_name = "FILE")]
+    pub sample_times: Option<PathBuf>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -144,6 +148,14 @@ pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result
             }
         }
     };
+    let times_csv = std::sync::Mutex::new(String::from("generation,string,sample,seconds,used\n"));
+    let log_times = |g: usize, times: &[inverse::batch::SampleTime]| {
+        use std::fmt::Write as _;
+        let mut csv = times_csv.lock().unwrap_or_else(|p| p.into_inner());
+        for t in times {
+            let _ = writeln!(csv, "{g},{},{},{},{}", t.job, t.sample, t.seconds, t.used);
+        }
+    };
     let options = Options {
         threads: ranks::threads(args.threads, cluster),
         cluster,
@@ -151,10 +163,15 @@ pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result
         stop_after: args.stop_after,
         cancel: Some(&cancel),
         progress: Some(&on_event),
+        sample_times: args.sample_times.is_some().then_some(&log_times as _),
     };
     let result = inverse::optimize(&problem, &args.out, &options);
     if let Some(bar) = &bar {
         bar.finish_and_clear();
+    }
+    if let Some(path) = &args.sample_times {
+        let csv = times_csv.into_inner().unwrap_or_else(|p| p.into_inner());
+        std::fs::write(path, csv).with_context(|| format!("writing {}", path.display()))?;
     }
     let state = result.with_context(|| format!("optimising {}", args.problem.display()))?;
     if !args.quiet {

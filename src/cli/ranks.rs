@@ -64,10 +64,13 @@ pub fn serve(cluster: Option<&Cluster>, command: &Command) -> Option<i32> {
             threads(asked, cluster),
             &|task: &batch::SampleTask| match &loaded {
                 Ok(p) => batch::run_task(p, task),
-                Err(e) => Err(agglo::inverse::problem::SampleFailure(format!(
-                    "rank {rank} could not load {}: {e}",
-                    problem.display()
-                ))),
+                Err(e) => batch::SampleReport {
+                    outcome: Err(agglo::inverse::problem::SampleFailure(format!(
+                        "rank {rank} could not load {}: {e}",
+                        problem.display()
+                    ))),
+                    seconds: 0.0,
+                },
             },
         )
     };

@@ -3,6 +3,8 @@
 //! Rank 0 runs the command (the genetic algorithm, a scan, a study) and is the
 //! only rank that decides anything: it hands out one task at a time to whichever
 //! rank has a free thread, its own threads included, and takes the results back.
+//! Each other rank also holds one task in its queue beyond its busy threads, so that
+//! the message round trip overlaps a computation instead of adding to it.
 //! Every other rank runs [`Cluster::serve`]: receive a task, compute it, send the
 //! result, until rank 0 says stop. Tasks and results travel as postcard bytes, which
 //! carry `f64` bit for bit (NaN included), so a result is the same wherever it was
@@ -36,13 +38,17 @@ const TAG_RESULT: i32 = 2;
 const TAG_STOP: i32 = 3;
 const TAG_DONE: i32 = 4;
 
+/// Tasks queued on each other rank beyond its busy threads.
+const PREFETCH: usize = 1;
+
 /// What travels: the batch it belongs to, its id within the batch, the payload.
 #[derive(Serialize, Deserialize)]
 struct Envelope<P> {
     batch: u64,
     id: u64,
-    /// Seconds the worker spent computing (results only): the rest of a round trip
-    /// is the cost of the MPI layer.
+    /// Seconds the task waited in the rank's queue and the worker spent computing it
+    /// (results only): the rest of a round trip is the cost of the MPI layer.
+    queued_seconds: f64,
     compute_seconds: f64,
     payload: P,
 }
@@ -101,12 +107,12 @@ fn decode<P: DeserializeOwned>(bytes: &[u8]) -> Result<Envelope<P>, FarmError> {
     })
 }
 
-/// Sleep a little longer each time nothing happened (10 µs … 0.5 ms): a waiting
-/// rank costs next to no CPU and answers within half a millisecond.
+/// Sleep a little longer each time nothing happened (10 µs … 160 µs): a waiting
+/// rank costs little CPU and answers within a fraction of a millisecond.
 struct Backoff(u32);
 impl Backoff {
     fn wait(&mut self) {
-        std::thread::sleep(Duration::from_micros(10u64 << self.0.min(5)));
+        std::thread::sleep(Duration::from_micros(10u64 << self.0.min(4)));
         self.0 += 1;
     }
 }
@@ -183,11 +189,14 @@ impl Cluster {
         let mut next_id = 0u64;
         loop {
             loop {
+                // Other ranks hold one task more than they have threads, so that the
+                // next one is there when a thread frees: the message latency is hidden
+                // behind the computation instead of added to it.
                 let target = if local_running < threads {
                     Some(0)
                 } else {
                     let in_flight = self.in_flight.borrow();
-                    (1..size).find(|&r| in_flight[r] < threads)
+                    (1..size).find(|&r| in_flight[r] < threads + PREFETCH)
                 };
                 let Some(rank) = target else { break };
                 let Some(task) = dispatcher.next_task() else {
@@ -201,6 +210,7 @@ impl Cluster {
                     let bytes = encode(&Envelope {
                         batch,
                         id: next_id,
+                        queued_seconds: 0.0,
                         compute_seconds: 0.0,
                         payload: &task,
                     });
@@ -236,8 +246,8 @@ impl Cluster {
                         && let Some((task, _, sent)) = running.remove(&envelope.id)
                     {
                         let round_trip = sent.elapsed().as_secs_f64();
-                        self.stats.borrow_mut().overhead_seconds +=
-                            (round_trip - envelope.compute_seconds).max(0.0);
+                        let busy = envelope.queued_seconds + envelope.compute_seconds;
+                        self.stats.borrow_mut().overhead_seconds += (round_trip - busy).max(0.0);
                         dispatcher.complete(task, envelope.payload);
                     } else {
                         self.stats.borrow_mut().stale_results += 1;
@@ -309,10 +319,13 @@ impl Cluster {
                 self.world.abort(1)
             }
         };
-        // Each task is timed on its worker thread: the result carries its compute time.
-        let timed = |t: &T| {
+        // Each task is timed on its worker thread: the result carries how long it
+        // waited in this rank's queue and how long it computed.
+        let timed = |(t, received): &(T, Instant)| {
             let start = Instant::now();
-            (work(t), start.elapsed().as_secs_f64())
+            let output = work(t);
+            let queued = start.duration_since(*received).as_secs_f64();
+            (output, queued, start.elapsed().as_secs_f64())
         };
         let (tx, rx) = mpsc::channel();
         let queue = Mutex::new(Some(rx));
@@ -327,7 +340,7 @@ impl Cluster {
         code
     }
 
-    fn serve_loop<T, O>(&self, local: &LocalPool<'_, T, (O, f64)>) -> i32
+    fn serve_loop<T, O>(&self, local: &LocalPool<'_, (T, Instant), (O, f64, f64)>) -> i32
     where
         T: DeserializeOwned + Send,
         O: Serialize + Send,
@@ -349,7 +362,7 @@ impl Cluster {
                         match decode::<T>(&bytes) {
                             Ok(e) => {
                                 keys.insert(next_key, (e.batch, e.id));
-                                local.submit(next_key, e.payload);
+                                local.submit(next_key, (e.payload, Instant::now()));
                                 next_key += 1;
                             }
                             Err(e) => {
@@ -362,11 +375,12 @@ impl Cluster {
                 backoff = Backoff(0);
                 continue;
             }
-            if let Some((key, (output, seconds))) = local.try_result() {
+            if let Some((key, (output, queued, seconds))) = local.try_result() {
                 let (batch, id) = keys.remove(&key).unwrap_or((0, 0));
                 let bytes = encode(&Envelope {
                     batch,
                     id,
+                    queued_seconds: queued,
                     compute_seconds: seconds,
                     payload: output,
                 });

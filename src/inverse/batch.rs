@@ -18,6 +18,7 @@
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
@@ -46,13 +47,35 @@ pub struct SampleTask {
     pub keep_radii: bool,
 }
 
+/// A sample's outcome and the seconds its worker spent on it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SampleReport {
+    pub outcome: SampleOutcome,
+    pub seconds: f64,
+}
+
 /// Compute one sample of `problem` (the worker function of every inverse batch).
-pub fn run_task(problem: &InverseProblem, task: &SampleTask) -> SampleOutcome {
+pub fn run_task(problem: &InverseProblem, task: &SampleTask) -> SampleReport {
+    let start = Instant::now();
     let scenario = match &task.scene {
         SampleScene::Genes(genes) => problem.scenario_for(genes, task.seed),
         SampleScene::Field { path, value } => problem.scenario_with(path, *value, task.seed),
     };
-    run_sample(scenario, task.keep_radii)
+    let outcome = run_sample(scenario, task.keep_radii);
+    SampleReport {
+        outcome,
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+/// The cost of one computed sample (`--sample-times`): where the time of a batch goes.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SampleTime {
+    pub job: usize,
+    pub sample: u32,
+    pub seconds: f64,
+    /// False for a speculative sample its ensemble did not need.
+    pub used: bool,
 }
 
 /// One ensemble of a batch.
@@ -94,6 +117,8 @@ pub struct EnsembleBatch<'a> {
     speculate: bool,
     wasted: u64,
     remaining: usize,
+    /// (job, sample, seconds) of every result received.
+    times: Vec<(usize, u32, f64)>,
 }
 
 impl<'a> EnsembleBatch<'a> {
@@ -115,6 +140,7 @@ impl<'a> EnsembleBatch<'a> {
             speculate: true,
             wasted: 0,
             remaining,
+            times: Vec::new(),
         }
     }
 
@@ -158,17 +184,28 @@ impl<'a> EnsembleBatch<'a> {
         }
     }
 
-    /// Run the batch on `workers`; the evaluations in job order.
+    /// Run the batch on `workers`; the evaluations in job order and the cost of
+    /// every sample computed.
     pub fn run(
         mut self,
         workers: &Workers,
         problem: &InverseProblem,
-    ) -> Result<(Vec<Evaluation>, u64), InverseError> {
+    ) -> Result<(Vec<Evaluation>, Vec<SampleTime>), InverseError> {
         workers
             .run(&mut self, &|t: &SampleTask| run_task(problem, t))
             .map_err(|e: FarmError| InverseError::Other(e.to_string()))?;
-        let wasted = self.wasted;
-        self.into_results().map(|r| (r, wasted))
+        let times = std::mem::take(&mut self.times);
+        let evals = self.into_results()?;
+        let times = times
+            .into_iter()
+            .map(|(job, sample, seconds)| SampleTime {
+                job,
+                sample,
+                seconds,
+                used: sample < evals[job].samples,
+            })
+            .collect();
+        Ok((evals, times))
     }
 
     /// The evaluations in job order, or the failure that stopped the batch.
@@ -185,7 +222,7 @@ impl<'a> EnsembleBatch<'a> {
 
 impl Dispatcher for EnsembleBatch<'_> {
     type Task = SampleTask;
-    type Output = SampleOutcome;
+    type Output = SampleReport;
 
     fn next_task(&mut self) -> Option<SampleTask> {
         if self.failure.is_some() || self.cancelled() {
@@ -212,7 +249,9 @@ impl Dispatcher for EnsembleBatch<'_> {
         Some(self.start(j))
     }
 
-    fn complete(&mut self, task: SampleTask, output: SampleOutcome) {
+    fn complete(&mut self, task: SampleTask, report: SampleReport) {
+        self.times.push((task.job, task.sample, report.seconds));
+        let output = report.outcome;
         let st = &mut self.jobs[task.job];
         if st.result.is_some() || self.failure.is_some() {
             self.wasted += 1;

@@ -76,6 +76,9 @@ pub struct Options<'a> {
     /// Set to stop between samples (Ctrl-C).
     pub cancel: Option<&'a AtomicBool>,
     pub progress: Option<&'a (dyn Fn(Event) + Sync)>,
+    /// Receives the cost of every sample computed, generation by generation
+    /// (the closing check as generation G).
+    pub sample_times: Option<&'a dyn Fn(usize, &[batch::SampleTime])>,
 }
 
 /// Run (or continue) the GA, writing outputs to `dir` and a checkpoint after every
@@ -146,11 +149,14 @@ pub fn optimize(
                     samples: e.samples,
                 })
             };
-            EnsembleBatch::new(jobs)
+            let (evals, times) = EnsembleBatch::new(jobs)
                 .cancel_on(options.cancel)
                 .on_done(Some(&on_done))
-                .run(&workers, problem)
-                .map(|(evals, _wasted)| evals)
+                .run(&workers, problem)?;
+            if let Some(log) = options.sample_times {
+                log(g, &times);
+            }
+            Ok(evals)
         })?;
         checkpoint::Checkpoint::new(problem, &state).save(dir)?;
         output::write_tables(dir, problem, &state)?;
@@ -218,9 +224,12 @@ fn reevaluate(
             coordinates: (last, r),
         })
         .collect();
-    let (evals, _) = EnsembleBatch::new(jobs)
+    let (evals, times) = EnsembleBatch::new(jobs)
         .cancel_on(options.cancel)
         .run(workers, problem)?;
+    if let Some(log) = options.sample_times {
+        log(last, &times);
+    }
     let mut finalists: Vec<Finalist> = chosen
         .iter()
         .zip(evals)

@@ -347,8 +347,9 @@ impl Figure for Convergence<'_> {
             .enumerate()
             .map(|(k, f)| {
                 let (a, b) = se(f.eval.cost, f.eval.cost_se);
-                // Side by side around the check's column, the winner first.
-                let x = h.len() as f64 + 0.3 * (k as f64 / self.finalists.len() as f64 - 0.4);
+                // Side by side across the check's column, the winner first.
+                let spread = (self.finalists.len().max(2) - 1) as f64;
+                let x = h.len() as f64 - 0.35 + 0.7 * k as f64 / spread;
                 (x, f.eval.cost, a, b)
             })
             .collect();
@@ -422,6 +423,13 @@ impl Figure for Convergence<'_> {
                     });
                 if !checked.is_empty() {
                     let green = RGBColor(0, 140, 60);
+                    chart
+                        .draw_series(
+                            checked
+                                .iter()
+                                .map(|&(x, y, _, _)| Circle::new((x, y), 4, green.filled())),
+                        )
+                        .map_err(err)?;
                     chart
                         .draw_series(checked.iter().map(clip).map(|(x, y, a, b)| {
                             ErrorBar::new_vertical(x, a, y, b, green.stroke_width(2), 6)
