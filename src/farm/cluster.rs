@@ -290,7 +290,7 @@ impl Cluster {
         for r in 1..size {
             self.world
                 .process_at_rank(r as i32)
-                .send_with_tag(&code, TAG_STOP);
+                .send_with_tag(&code.to_le_bytes()[..], TAG_STOP);
         }
         let mut done = 0;
         while done + 1 < size {
@@ -336,7 +336,9 @@ impl Cluster {
             *queue.lock().unwrap_or_else(|p| p.into_inner()) = None;
             code
         });
-        self.world.process_at_rank(0).send_with_tag(&code, TAG_DONE);
+        self.world
+            .process_at_rank(0)
+            .send_with_tag(&code.to_le_bytes()[..], TAG_DONE);
         code
     }
 
@@ -354,8 +356,12 @@ impl Cluster {
             if let Some((msg, status)) = root.immediate_matched_probe() {
                 match status.tag() {
                     TAG_STOP => {
-                        let (code, _) = (msg, status).matched_receive_vec::<i32>();
-                        return code.first().copied().unwrap_or(1);
+                        // Every message is bytes, STOP's the exit code in little-endian.
+                        let (bytes, _) = (msg, status).matched_receive_vec::<u8>();
+                        return bytes
+                            .get(..4)
+                            .and_then(|b| b.try_into().ok())
+                            .map_or(1, i32::from_le_bytes);
                     }
                     _ => {
                         let (bytes, _) = (msg, status).matched_receive_vec::<u8>();
