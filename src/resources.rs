@@ -14,7 +14,10 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use serde::{Deserialize, Serialize};
 
-use crate::scenario::{ContactRule, CoolingMethod, DurationLaw, Scenario, SolverKind, Stepping};
+use crate::scenario::{
+    BondTest, ContactRule, CoolingMethod, DurationLaw, FrictionCap, PairHardness, Scenario,
+    Separation, SolverKind, Stepping,
+};
 
 /// Universal gas constant R [J/(mol K)].
 pub const GAS_CONSTANT: f64 = 8.314462618;
@@ -116,6 +119,10 @@ pub struct ImpactSettings {
     pub tol: f64,
     pub max_iterations: u32,
     pub solver: SolverKind,
+    pub pair_hardness: PairHardness,
+    pub friction_cap: FrictionCap,
+    pub bond_test: BondTest,
+    pub separation: Separation,
 }
 
 impl ImpactSettings {
@@ -130,6 +137,10 @@ impl ImpactSettings {
             tol: i.tol,
             max_iterations: i.max_iterations,
             solver: i.solver,
+            pair_hardness: i.pair_hardness,
+            friction_cap: i.friction_cap,
+            bond_test: i.bond_test,
+            separation: i.separation,
         }
     }
 }

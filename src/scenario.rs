@@ -161,6 +161,78 @@ pub struct ImpactModel {
     /// `plain` (the papers' iteration only; non-convergence is counted, the last iterate used).
     #[serde(default)]
     pub solver: SolverKind,
+    /// Reading: which hardness a pair bonds against in G(e) (docs/model.md §5.1 step 7):
+    /// `min` (the softer body governs, P04's footnote to (3.1); default), `harmonic`,
+    /// `arithmetic` (means of the two) or `max` (both surfaces must yield).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub pair_hardness: PairHardness,
+    /// Reading: `sticking` caps the friction impulse where sliding stops (default), `none`
+    /// applies the papers' full Coulomb impulse, which can reverse sliding and create
+    /// kinetic energy (docs/model.md §5.1 step 5).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub friction_cap: FrictionCap,
+    /// Reading: `fixed_point` bonds only when e* = 0 (default); `any_iterate` is P02 (20),
+    /// which bonds as soon as one iterate of the papers' iteration from e0 = 0 presses at
+    /// ≥ 2H (docs/model.md §5.3).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub bond_test: BondTest,
+    /// Reading: how a bouncing pair that overlaps is separated: `normal` (along n̂,
+    /// mass-weighted, centre of mass fixed; default) or `velocities` (P02 (8): each body
+    /// moves b(1 − δ) along its own outgoing velocity, δ = |r_ij|/(b_i + b_j)).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub separation: Separation,
+}
+
+fn is_default<T: Default + PartialEq>(x: &T) -> bool {
+    *x == T::default()
+}
+
+/// Which hardness a pair bonds against (docs/model.md §5.1 step 7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PairHardness {
+    /// min(H_i, H_j): the softer body governs (P04, footnote to (3.1) and §6(b)).
+    #[default]
+    Min,
+    /// 2 H_i H_j / (H_i + H_j).
+    Harmonic,
+    /// (H_i + H_j) / 2.
+    Arithmetic,
+    /// max(H_i, H_j): both surfaces must yield.
+    Max,
+}
+
+/// Whether the tangential (friction) impulse is capped (docs/model.md §5.1 step 5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum FrictionCap {
+    /// Capped at the impulse m_red |v_ti − v_tj| that stops the sliding.
+    #[default]
+    Sticking,
+    /// The papers' uncapped impulse μ Ī δτ (P04 (4.17), P02 (7)); may create energy.
+    None,
+}
+
+/// When a pair bonds (docs/model.md §5.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum BondTest {
+    /// Only when the fixed point itself is e* = 0.
+    #[default]
+    FixedPoint,
+    /// P02 (20): when any iterate of the papers' iteration from e0 = 0 reaches P ≥ 2H.
+    AnyIterate,
+}
+
+/// How an overlapping bouncing pair is separated (docs/model.md §5.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Separation {
+    /// Along n̂ to touching, each body in inverse proportion to its mass.
+    #[default]
+    Normal,
+    /// P02 (8): r_i += b_i (1 − δ) v_i/|v_i|, and the same for j.
+    Velocities,
 }
 
 fn default_solver_tol() -> f64 {
@@ -181,6 +253,10 @@ impl Default for ImpactModel {
             tol: default_solver_tol(),
             max_iterations: default_max_iterations(),
             solver: SolverKind::Safeguarded,
+            pair_hardness: PairHardness::Min,
+            friction_cap: FrictionCap::Sticking,
+            bond_test: BondTest::FixedPoint,
+            separation: Separation::Normal,
         }
     }
 }

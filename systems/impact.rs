@@ -21,7 +21,7 @@ use crate::resources::{
     BoxGeometry, ContactList, Counters, EnergyLedger, ImpactRecord, ImpactRecords, ImpactSettings,
     MaterialConstants, SimClock, StateChanged, hardness,
 };
-use crate::scenario::{DurationLaw, SolverKind};
+use crate::scenario::{BondTest, DurationLaw, FrictionCap, PairHardness, Separation, SolverKind};
 
 /// One body's state entering an impact.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,6 +59,12 @@ pub struct PairModel {
     /// Plain iterations before the fallback.
     pub max_iterations: u32,
     pub solver: SolverKind,
+    /// Which hardness the pair bonds against (a reading, docs/model.md §5.1 step 7).
+    pub pair_hardness: PairHardness,
+    /// Whether the friction impulse is capped at sticking (a reading, §5.1 step 5).
+    pub friction_cap: FrictionCap,
+    /// When the pair bonds (a reading, §5.3).
+    pub bond_test: BondTest,
 }
 
 impl PairModel {
@@ -77,6 +83,9 @@ impl PairModel {
             tol: settings.tol,
             max_iterations: settings.max_iterations,
             solver: settings.solver,
+            pair_hardness: settings.pair_hardness,
+            friction_cap: settings.friction_cap,
+            bond_test: settings.bond_test,
         }
     }
 }
@@ -111,6 +120,9 @@ pub enum SolveMethod {
     ClosedForm,
     /// The closed-form seed bracketed the root, which Illinois then found.
     Seeded,
+    /// Bond test `any_iterate`: an iterate of the papers' iteration pressed at ≥ 2H and
+    /// the pair bonded there (P02 (20)), whatever the fixed point.
+    IterateBonded,
 }
 
 /// Result of one pair solve.
@@ -176,8 +188,11 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
     let slip_speed = slip.length();
     let (mut vti_new, mut vtj_new) = (vti, vtj);
     if slip_speed > 0.0 && mu > 0.0 {
-        let reduced = mi * mj / (mi + mj);
-        let jt = (mu * force * duration).min(slip_speed * reduced);
+        let coulomb = mu * force * duration;
+        let jt = match model.friction_cap {
+            FrictionCap::Sticking => coulomb.min(slip_speed * mi * mj / (mi + mj)),
+            FrictionCap::None => coulomb,
+        };
         let t_hat = slip / slip_speed;
         vti_new -= (jt / mi) * t_hat;
         vtj_new += (jt / mj) * t_hat;
@@ -187,9 +202,14 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
 
     // 6. heat: W split equally, reaction heat R_c to each body (P02 (14)–(17))
     let ke = |m: f64, v: DVec3| 0.5 * m * v.length_squared();
-    let dissipated =
-        (ke(mi, bi.velocity) + ke(mj, bj.velocity) - ke(mi, velocity_i) - ke(mj, velocity_j))
-            .max(0.0);
+    let loss = ke(mi, bi.velocity) + ke(mj, bj.velocity) - ke(mi, velocity_i) - ke(mj, velocity_j);
+    // W ≥ 0 in exact arithmetic when friction is capped, so a negative value is rounding;
+    // uncapped friction can really create kinetic energy, which then leaves the heat
+    // (signed W) so that the energy ledgers still close (docs/model.md §10).
+    let dissipated = match model.friction_cap {
+        FrictionCap::Sticking => loss.max(0.0),
+        FrictionCap::None => loss,
+    };
     let reaction_heat = model.alpha * contact_area;
     let c = model.heat_capacity;
     let temperature_i = bi.temperature + dissipated / (2.0 * mi * c) + reaction_heat / (mi * c);
@@ -197,8 +217,8 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
     let hi = hardness(model.h0, model.activation_energy, temperature_i);
     let hj = hardness(model.h0, model.activation_energy, temperature_j);
 
-    // 7. G(e) = max(1 − Ī / (2 a_c min H), 0), never forming 0·∞
-    let h = hi.min(hj);
+    // 7. G(e) = max(1 − Ī / (2 a_c H_pair), 0), never forming 0·∞
+    let h = pair_hardness(model.pair_hardness, hi, hj);
     let g = if h.is_infinite() {
         1.0
     } else if contact_area <= 0.0 {
@@ -217,6 +237,37 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
         reaction_heat,
         contact_area,
     }
+}
+
+/// The hardness a pair bonds against, from the two bodies' hardnesses [Pa] (either may
+/// be +∞, docs/model.md §1); never NaN for non-NaN inputs.
+pub fn pair_hardness(rule: PairHardness, hi: f64, hj: f64) -> f64 {
+    match rule {
+        PairHardness::Min => hi.min(hj),
+        PairHardness::Max => hi.max(hj),
+        PairHardness::Arithmetic => 0.5 * hi + 0.5 * hj,
+        // 2/(1/H_i + 1/H_j): an infinite hardness contributes 0, so ∞ and H give 2H.
+        PairHardness::Harmonic => 2.0 / (1.0 / hi + 1.0 / hj),
+    }
+}
+
+/// P02 (20)'s in-loop accretion test: the papers' iteration from e0 = 0, bonding as
+/// soon as one iterate presses at ≥ 2H, i.e. G(e_K) = 0 (G is clamped at 0 exactly
+/// there). Returns the iterations used if the pair bonds this way, `None` when the
+/// iteration converges (or runs out of iterations) without such an iterate.
+fn bonds_at_an_iterate(model: &PairModel, g: impl Fn(f64) -> f64) -> Option<u32> {
+    let mut e = 0.0_f64;
+    for k in 1..=model.max_iterations {
+        let next = g(e);
+        if next <= 0.0 {
+            return Some(k);
+        }
+        if converged(model.tol, e, next) {
+            return None;
+        }
+        e = next;
+    }
+    None
 }
 
 /// Converged when |e_{K+1} − e_K| ≤ TOL·e_K, with an absolute floor so that e = 0 converges.
@@ -380,11 +431,11 @@ pub fn restitution_seed(
     if closing.is_nan() || closing <= 0.0 {
         return None;
     }
-    let h = hardness(model.h0, model.activation_energy, bi.temperature).min(hardness(
-        model.h0,
-        model.activation_energy,
-        bj.temperature,
-    ));
+    let h = pair_hardness(
+        model.pair_hardness,
+        hardness(model.h0, model.activation_energy, bi.temperature),
+        hardness(model.h0, model.activation_energy, bj.temperature),
+    );
     if h.is_infinite() {
         return Some(1.0);
     }
@@ -445,13 +496,26 @@ pub fn find_fixed_point_from(model: &PairModel, seed: f64, g: impl Fn(f64) -> f6
 /// the `plain` solver is the papers' iteration from e0 = 0, kept for the studies.
 pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3) -> PairOutcome {
     let g = |e| trial(model, bi, bj, normal, e).g;
-    let seed = match model.solver {
-        SolverKind::Safeguarded => restitution_seed(model, bi, bj, normal),
-        SolverKind::Plain => None,
+    let accreted = match model.bond_test {
+        BondTest::FixedPoint => None,
+        BondTest::AnyIterate => bonds_at_an_iterate(model, g),
     };
-    let fp = match seed {
-        Some(seed) => find_fixed_point_from(model, seed, g),
-        None => find_fixed_point(model, g),
+    let fp = if let Some(iterations) = accreted {
+        FixedPoint {
+            e: 0.0,
+            iterations,
+            fallback_iterations: 0,
+            method: SolveMethod::IterateBonded,
+        }
+    } else {
+        let seed = match model.solver {
+            SolverKind::Safeguarded => restitution_seed(model, bi, bj, normal),
+            SolverKind::Plain => None,
+        };
+        match seed {
+            Some(seed) => find_fixed_point_from(model, seed, g),
+            None => find_fixed_point(model, g),
+        }
     };
     let (mi, mj) = (bi.mass, bj.mass);
     let total = mi + mj;
@@ -585,12 +649,24 @@ pub fn resolve_impacts(
         if !out.bonded {
             // Push an overlapping pair apart along n to touching; the centre of mass stays.
             // The image met may not be the nearest one when bodies are large.
-            let overlap = ra.0 + rb.0 - contact.separation.length();
+            let distance = contact.separation.length();
+            let overlap = ra.0 + rb.0 - distance;
             if overlap > 0.0 {
                 clock.bodies_pushed = true;
-                let total = ma.0 + mb.0;
-                pa.0 = geometry.wrap(pa.0 - contact.normal * (overlap * mb.0 / total));
-                pb.0 = geometry.wrap(pb.0 + contact.normal * (overlap * ma.0 / total));
+                match settings.separation {
+                    Separation::Normal => {
+                        let total = ma.0 + mb.0;
+                        pa.0 = geometry.wrap(pa.0 - contact.normal * (overlap * mb.0 / total));
+                        pb.0 = geometry.wrap(pb.0 + contact.normal * (overlap * ma.0 / total));
+                    }
+                    Separation::Velocities => {
+                        // P02 (8): each body moves b (1 − δ) along its own outgoing
+                        // velocity (none if it is at rest), δ = |r_ij| / (b_i + b_j).
+                        let shortfall = 1.0 - distance / (ra.0 + rb.0);
+                        pa.0 = geometry.wrap(pa.0 + va.0.normalize_or_zero() * (ra.0 * shortfall));
+                        pb.0 = geometry.wrap(pb.0 + vb.0.normalize_or_zero() * (rb.0 * shortfall));
+                    }
+                }
             }
         }
 
@@ -603,7 +679,10 @@ pub fn resolve_impacts(
         counters.fixed_point_iterations += u64::from(out.iterations);
         counters.fallback_iterations += u64::from(out.fallback_iterations);
         match out.method {
-            SolveMethod::FixedPoint | SolveMethod::ClosedForm | SolveMethod::Seeded => {}
+            SolveMethod::FixedPoint
+            | SolveMethod::ClosedForm
+            | SolveMethod::Seeded
+            | SolveMethod::IterateBonded => {}
             SolveMethod::Fallback => counters.fallbacks += 1,
             SolveMethod::Unconverged => counters.unconverged += 1,
         }
@@ -643,6 +722,9 @@ mod tests {
             tol: 1e-12,
             max_iterations: 100,
             solver: SolverKind::Safeguarded,
+            pair_hardness: PairHardness::Min,
+            friction_cap: FrictionCap::Sticking,
+            bond_test: BondTest::FixedPoint,
         }
     }
 

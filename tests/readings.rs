@@ -1,0 +1,351 @@
+//! The model's readings (docs/model.md, "Readings"): each alternative reading of the
+//! papers on two bodies, against a closed form or an exact kinematic prediction, and
+//! the defaults unchanged.
+
+mod common;
+
+use agglo::prelude::*;
+use agglo::resources::hardness;
+use agglo::scenario::{BondTest, DurationLaw, FrictionCap, PairHardness, SolverKind};
+use agglo::systems::impact::{PairBody, PairModel, closed_form_restitution, solve_pair};
+use common::{merge, pair, scenario};
+use glam::DVec3;
+use serde_json::json;
+
+const RHO: f64 = 2000.0;
+const H0: f64 = 1e4;
+const B0: f64 = 1e-3;
+
+fn grain(velocity: DVec3, temperature: f64) -> PairBody {
+    PairBody {
+        mass: 4.0 / 3.0 * std::f64::consts::PI * B0.powi(3) * RHO,
+        radius: B0,
+        velocity,
+        temperature,
+    }
+}
+
+fn model(a0: f64, q: f64, heat_capacity: f64) -> PairModel {
+    PairModel {
+        a0,
+        af: 1.0,
+        beta: 1.0,
+        duration: DurationLaw::P04,
+        friction_scales_with_adhesion: false,
+        mu0: 0.0,
+        alpha: 0.0,
+        heat_capacity,
+        h0: H0,
+        activation_energy: q,
+        tol: 1e-12,
+        max_iterations: 100,
+        solver: SolverKind::Safeguarded,
+        pair_hardness: PairHardness::Min,
+        friction_cap: FrictionCap::Sticking,
+        bond_test: BondTest::FixedPoint,
+    }
+}
+
+#[test]
+fn each_pair_hardness_rule_gives_the_closed_form_with_its_own_hardness() {
+    // Two identical grains at different temperatures: H_i ≠ H_j. A heat capacity of
+    // 1e30 J/(kg K) keeps the impact from heating them (ΔT ~ 1e-31 K), so H stays fixed
+    // and docs/model.md §14's closed form holds with H = the rule's pair hardness.
+    let q = 5e3; // exp(Q/(Rθ)): 7.42 at 300 K, 2.72 at 600 K
+    let (ti, tj) = (300.0, 600.0);
+    let (hi, hj) = (hardness(H0, q, ti), hardness(H0, q, tj));
+    assert!(
+        hi > 2.0 * hj,
+        "the two hardnesses must differ clearly: {hi} {hj}"
+    );
+    let vp = 2.0; // λ = 2ρv²/(3Hβ) between 0.07 and 0.2: every rule bounces
+    let expected_h = [
+        (PairHardness::Min, hj),
+        (PairHardness::Harmonic, 2.0 * hi * hj / (hi + hj)),
+        (PairHardness::Arithmetic, 0.5 * (hi + hj)),
+        (PairHardness::Max, hi),
+    ];
+    let mut last = -1.0;
+    for (rule, h) in expected_h {
+        let mut m = model(0.3, q, 1e30);
+        m.pair_hardness = rule;
+        let out = solve_pair(
+            &m,
+            &grain(DVec3::X * vp, ti),
+            &grain(-DVec3::X * vp, tj),
+            DVec3::X,
+        );
+        let lambda = 2.0 * RHO * vp * vp / (3.0 * h);
+        let expected = closed_form_restitution(0.3, 1.0, lambda);
+        assert!(!out.bonded, "{rule:?}");
+        // 1e-9: the solver's tolerance is 1e-12 relative; the rest is rounding.
+        assert!(
+            (out.restitution - expected).abs() < 1e-9,
+            "{rule:?}: e = {}, closed form {expected}",
+            out.restitution
+        );
+        // A harder pair rebounds more: min < harmonic < arithmetic < max.
+        assert!(out.restitution > last, "{rule:?} out of order");
+        last = out.restitution;
+    }
+}
+
+#[test]
+fn pair_hardness_rules_handle_an_infinite_hardness_without_nan() {
+    use agglo::systems::impact::pair_hardness;
+    let inf = f64::INFINITY;
+    assert_eq!(pair_hardness(PairHardness::Min, inf, 3.0), 3.0);
+    assert_eq!(pair_hardness(PairHardness::Harmonic, inf, 3.0), 6.0);
+    assert_eq!(pair_hardness(PairHardness::Arithmetic, inf, 3.0), inf);
+    assert_eq!(pair_hardness(PairHardness::Max, inf, 3.0), inf);
+    assert_eq!(pair_hardness(PairHardness::Harmonic, inf, inf), inf);
+    // Both rules that see the infinite hardness give a fully elastic impact.
+    for rule in [PairHardness::Arithmetic, PairHardness::Max] {
+        let mut m = model(0.3, 1e6, 1000.0);
+        m.pair_hardness = rule;
+        let out = solve_pair(
+            &m,
+            &grain(DVec3::X * 10.0, 100.0), // Q/(Rθ) ≈ 1203 > 700: H = ∞
+            &grain(-DVec3::X * 10.0, 1e6),
+            DVec3::X,
+        );
+        assert_eq!(out.restitution, 1.0, "{rule:?}");
+        assert!(out.velocity_i.is_finite() && out.temperature_i.is_finite());
+    }
+}
+
+/// Two grains that meet exactly head on at x = ±b0 while sliding past each other in y
+/// at relative speed 2w: starting offsets in y cancel at the contact.
+fn oblique(v: f64, w: f64, mu0: f64, cap: &str) -> Simulation {
+    let gap_time = (0.004 - 2.0 * B0) / (2.0 * v);
+    let s = scenario(json!({
+        "cloud": {
+            "count": 2,
+            "bodies": [
+                { "position": [-0.002, -w * gap_time, 0], "velocity": [v, w, 0] },
+                { "position": [0.002, w * gap_time, 0], "velocity": [-v, -w, 0] }
+            ]
+        },
+        "material": { "mu0": mu0 },
+        "impact": { "a0": 0.5, "friction_cap": cap },
+        "time": { "end": 2.0 * gap_time }
+    }));
+    let mut sim = Simulation::new(&s).expect("builds");
+    sim.run().expect("runs, with every energy ledger closing");
+    assert_eq!(sim.counters().impacts, 1, "{cap}");
+    sim
+}
+
+#[test]
+fn uncapped_friction_reverses_the_sliding_by_the_coulomb_impulse_and_the_ledgers_close() {
+    // Below the critical speed (≈ 2.74 m/s) the pair bounces with e from §14. The
+    // Coulomb impulse μ m (1 + e) v changes each grain's y velocity by μ (1 + e) v, so
+    // the slip 2w becomes 2w − 2μ(1 + e)v: with μ = 0.5, v = 2, w = 0.1 it reverses.
+    let (v, w, mu) = (2.0, 0.1, 0.5);
+    let lambda = 2.0 * RHO * v * v / (3.0 * H0);
+    let e = closed_form_restitution(0.5, 1.0, lambda);
+    let slip_after = |sim: &Simulation| {
+        let b = sim.bodies();
+        b[0].velocity.y - b[1].velocity.y
+    };
+
+    let capped = oblique(v, w, mu, "sticking");
+    assert!(
+        slip_after(&capped).abs() < 1e-12,
+        "the cap stops the sliding exactly: slip {}",
+        slip_after(&capped)
+    );
+
+    let uncapped = oblique(v, w, mu, "none");
+    let expected = 2.0 * w - 2.0 * mu * (1.0 + e) * v;
+    assert!(
+        expected < -2.0 * w,
+        "the test needs a reversal larger than the slip"
+    );
+    // Closed form to 1e-9 m/s: e to 1e-12 relative, the rest rounding of ~1 m/s values.
+    assert!(
+        (slip_after(&uncapped) - expected).abs() < 1e-9,
+        "slip {} vs {expected}",
+        slip_after(&uncapped)
+    );
+    // Reversing the slip by more than its size creates kinetic energy; it is tallied as
+    // negative dissipation, so the ledgers (checked every step) closed and it shows here.
+    let created = 0.5 * 0.5 * grain(DVec3::ZERO, 0.0).mass * (expected.powi(2) - 4.0 * w * w);
+    let normal_loss = grain(DVec3::ZERO, 0.0).mass * v * v * (1.0 - e * e);
+    let dissipation = uncapped.ledger().impact_dissipation;
+    assert!(
+        (dissipation - (normal_loss - created)).abs() < 1e-9 * normal_loss,
+        "dissipation {dissipation} vs {}",
+        normal_loss - created
+    );
+}
+
+/// Λ at which P02 (20)'s first iterate e1 = 1 − Λ already presses at 2H (two identical
+/// grains, P02 duration law, af = 1): Λ(2 − Λ)² = a0 + (1 − a0)Λ, by bisection.
+fn first_iterate_threshold(a0: f64) -> f64 {
+    let f = |l: f64| l * (2.0 - l).powi(2) - a0 - (1.0 - a0) * l;
+    let (mut lo, mut hi) = (0.0, 0.5);
+    assert!(f(lo) < 0.0 && f(hi) > 0.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if f(mid) < 0.0 { lo = mid } else { hi = mid }
+    }
+    0.5 * (lo + hi)
+}
+
+/// A head-on pair with P02's duration law at Λ = ρw²/(6βH0) (w the closing speed).
+fn p02_head_on(lambda: f64, bond_test: &str) -> Simulation {
+    let w = (6.0 * H0 * lambda / RHO).sqrt();
+    let mut patch = pair(-0.002, 0.5 * w, 0.002, -0.5 * w);
+    merge(
+        &mut patch,
+        json!({
+            "impact": { "a0": 0.01, "duration": "p02", "bond_test": bond_test },
+            "time": { "end": 0.004 / w }
+        }),
+    );
+    let mut sim = Simulation::new(&scenario(patch)).expect("builds");
+    sim.run().expect("runs");
+    assert_eq!(sim.counters().impacts, 1);
+    sim
+}
+
+#[test]
+fn p02_in_loop_accretion_bonds_from_the_first_iterate_threshold_not_at_lambda_1() {
+    let threshold = first_iterate_threshold(0.01);
+    // docs/model.md §5.3: about 0.0033, i.e. ~6 % of the critical speed (Λ ∝ w²).
+    assert!((threshold - 0.0033).abs() < 1e-4, "{threshold}");
+    for lambda in [threshold * 1.001, 0.5, 0.99] {
+        let fixed = p02_head_on(lambda, "fixed_point");
+        assert_eq!(
+            fixed.counters().bounces,
+            1,
+            "Λ = {lambda}: e* > 0 below Λ = 1"
+        );
+        let any = p02_head_on(lambda, "any_iterate");
+        assert_eq!(
+            any.counters().bonds,
+            1,
+            "Λ = {lambda}: an iterate presses at 2H"
+        );
+        assert_eq!(any.bodies().len(), 1);
+    }
+    // Nearly elastic impacts converge without any iterate reaching 2H (Λ = 1e-4,
+    // e* ≈ 0.98, where the iteration contracts): the solve then goes on exactly as under
+    // `fixed_point`, so the two runs are bit-identical.
+    let fixed = p02_head_on(1e-4, "fixed_point");
+    let any = p02_head_on(1e-4, "any_iterate");
+    assert_eq!(any.counters().bounces, 1);
+    assert_eq!(fixed.bodies(), any.bodies());
+}
+
+/// One stepped-core run with a fixed step that first finds the pair overlapping; the
+/// light grain (1 primary) at −x meets the heavy one (8 primaries, radius 2 b0) and the
+/// centre of mass is at rest. Returns (before, after) of the impact step and Δt.
+fn overlapping_bounce(separation: &str) -> (Vec<BodyState>, Vec<BodyState>, f64) {
+    let dt = 1e-4;
+    let s = scenario(json!({
+        "cloud": {
+            "count": 2,
+            "bodies": [
+                { "position": [-0.004, 0, 0], "velocity": [2.0, 0, 0] },
+                { "position": [0.002, 0, 0], "velocity": [-0.25, 0, 0], "primaries": 8.0 }
+            ]
+        },
+        "impact": { "a0": 0.5, "separation": separation },
+        "time": { "end": 0.01, "stepping": { "fixed": { "dt": dt } } }
+    }));
+    let mut sim = Simulation::new(&s).expect("builds");
+    loop {
+        let before = sim.bodies();
+        sim.step().expect("steps");
+        if sim.counters().impacts == 1 {
+            return (before, sim.bodies(), dt);
+        }
+        assert!(!sim.is_finished(), "the pair never met");
+    }
+}
+
+#[test]
+fn separation_readings_move_the_pair_as_printed() {
+    for reading in ["normal", "velocities"] {
+        let (before, after, dt) = overlapping_bounce(reading);
+        assert_eq!(after.len(), 2, "{reading}: the pair bounces");
+        let (bi, bj) = (before[0].radius, before[1].radius);
+        let distance = before[1].position.x - before[0].position.x;
+        let overlap = bi + bj - distance;
+        assert!(
+            overlap > 1e-6,
+            "{reading}: the step must find an overlap, got {overlap}"
+        );
+        // Separation move = position after − position before − Δt · outgoing velocity.
+        let moved =
+            |k: usize| after[k].position.x - before[k].position.x - dt * after[k].velocity.x;
+        let (mi, mj) = (before[0].mass, before[1].mass);
+        let expected = match reading {
+            // Along n̂ to touching, in inverse proportion to mass.
+            "normal" => (-overlap * mj / (mi + mj), overlap * mi / (mi + mj)),
+            // P02 (8): b (1 − δ) along each outgoing velocity (−x for i, +x for j here).
+            _ => {
+                let shortfall = 1.0 - distance / (bi + bj);
+                assert!(after[0].velocity.x < 0.0 && after[1].velocity.x > 0.0);
+                (-bi * shortfall, bj * shortfall)
+            }
+        };
+        // 1e-15 m: positions ~1e-3 m carry rounding ~1e-19 m per operation.
+        assert!(
+            (moved(0) - expected.0).abs() < 1e-15 && (moved(1) - expected.1).abs() < 1e-15,
+            "{reading}: moved ({}, {}) vs {expected:?}",
+            moved(0),
+            moved(1)
+        );
+        let com_shift = (mi * moved(0) + mj * moved(1)) / (mi + mj);
+        if reading == "normal" {
+            assert!(
+                com_shift.abs() < 1e-15,
+                "the centre of mass stays: {com_shift}"
+            );
+        } else {
+            // P02 (8) shifts it, here by (m_j b_j − m_i b_i)/(m_i + m_j) (1 − δ) = 5/9 of
+            // the overlap (docs/model.md §5.3).
+            assert!(
+                com_shift > 0.5 * overlap,
+                "{com_shift} vs overlap {overlap}"
+            );
+        }
+    }
+}
+
+#[test]
+fn explicit_defaults_change_nothing() {
+    // The readings at their defaults neither appear in the scenario JSON nor change it.
+    let text = std::fs::read_to_string("scenarios/paper2004_best.json").unwrap();
+    let plain = Scenario::from_json(&text).unwrap();
+    let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    merge(
+        &mut value,
+        json!({ "impact": {
+            "pair_hardness": "min", "friction_cap": "sticking",
+            "bond_test": "fixed_point", "separation": "normal"
+        }}),
+    );
+    let explicit = Scenario::from_value(value).unwrap();
+    assert_eq!(plain, explicit);
+    let json = plain.to_json();
+    for key in ["pair_hardness", "friction_cap", "bond_test", "separation"] {
+        assert!(!json.contains(key), "{key} written at its default");
+    }
+}
+
+#[test]
+fn an_unknown_reading_is_refused_with_its_field() {
+    let text = std::fs::read_to_string("scenarios/two_body.json").unwrap();
+    let bad = text.replace(
+        "\"beta\": 1.0",
+        "\"beta\": 1.0, \"pair_hardness\": \"softest\"",
+    );
+    assert_ne!(bad, text);
+    let err = Scenario::from_json(&bad).unwrap_err().to_string();
+    assert!(err.contains("impact.pair_hardness"), "{err}");
+    assert!(err.contains("min"), "names the allowed values: {err}");
+}
