@@ -349,3 +349,110 @@ fn an_unknown_reading_is_refused_with_its_field() {
     assert!(err.contains("impact.pair_hardness"), "{err}");
     assert!(err.contains("min"), "names the allowed values: {err}");
 }
+
+mod study {
+    //! `agglo study readings`: the baseline is the plain run bit for bit, the study does
+    //! not depend on the thread count, and P02 runs use the inverse problem's end time.
+
+    use std::path::Path;
+
+    use agglo::inverse::InverseProblem;
+    use agglo::prelude::*;
+    use agglo::study::readings::{
+        BASELINE, ReadingsOptions, catalogue, measure, run_readings, scenario_for, write_readings,
+    };
+
+    fn load(name: &str) -> Scenario {
+        Scenario::load(
+            &Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("scenarios")
+                .join(name),
+        )
+        .unwrap()
+    }
+
+    fn options(only: &[&str]) -> ReadingsOptions {
+        ReadingsOptions {
+            seeds: 2,
+            only: only.iter().map(|s| s.to_string()).collect(),
+            target_growth: Some(3.23),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn the_baseline_is_agglo_run_bit_for_bit_and_threads_change_nothing() {
+        let base = load("paper2004_best.json");
+        let study = run_readings(&base, &options(&["pair_hardness_max"]), |_| {}).unwrap();
+        assert_eq!(study.readings[0].key, BASELINE);
+        assert_eq!(study.seeds, vec![2004, 2005]);
+        for run in study.runs.iter().filter(|r| r.reading == 0) {
+            // The plain run of the file with that seed, as `agglo run --seed` makes it.
+            let mut plain = base.clone();
+            plain.seed = run.seed;
+            let mut direct = measure(&plain).unwrap();
+            let mut got = run.result.clone().unwrap();
+            (direct.wall_seconds, got.wall_seconds) = (0.0, 0.0);
+            assert_eq!(got, direct, "seed {}", run.seed);
+            assert_eq!(
+                got.growth_ratio.to_bits(),
+                direct.growth_ratio.to_bits(),
+                "b_f/b0 bit for bit"
+            );
+        }
+        // The same study on one thread: identical runs.
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let single = pool
+            .install(|| run_readings(&base, &options(&["pair_hardness_max"]), |_| {}))
+            .unwrap();
+        for (a, b) in study.runs.iter().zip(&single.runs) {
+            let (mut x, mut y) = (a.result.clone().unwrap(), b.result.clone().unwrap());
+            (x.wall_seconds, y.wall_seconds) = (0.0, 0.0);
+            assert_eq!((a.reading, a.seed, x), (b.reading, b.seed, y));
+        }
+        // The files come out, and the table names every reading run.
+        let dir = tempfile::tempdir().unwrap();
+        write_readings(dir.path(), &study).unwrap();
+        let table = std::fs::read_to_string(dir.path().join("readings.md")).unwrap();
+        assert!(table.contains("`baseline`") && table.contains("`pair_hardness_max`"));
+        let csv = std::fs::read_to_string(dir.path().join("runs.csv")).unwrap();
+        assert_eq!(
+            csv.lines().count(),
+            1 + 2 * 2,
+            "header + 2 readings × 2 seeds"
+        );
+        assert!(dir.path().join("readings.png").exists());
+    }
+
+    #[test]
+    fn p02_runs_take_the_inverse_problems_end_time() {
+        let base = load("paper2002_best.json");
+        let problem = InverseProblem::load(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/paper2002_inverse.json"),
+        )
+        .unwrap();
+        let baseline = &catalogue(&base)[0];
+        for seed in [2002, 77] {
+            let ours = scenario_for(&base, baseline, seed, Some(200)).unwrap();
+            // The inverse problem's scenario at the shipped D (its base is the same file).
+            let theirs = problem.scenario_with("box.half_width", 1e-5, seed).unwrap();
+            assert_eq!(ours, theirs, "seed {seed}");
+        }
+    }
+
+    #[test]
+    fn an_unknown_reading_is_refused_with_the_list() {
+        let base = load("paper2002_best.json");
+        let err = run_readings(&base, &options(&["a0_p02"]), |_| {})
+            .unwrap_err()
+            .to_string();
+        // a0_p02 is a reading of P04's scene only.
+        assert!(
+            err.contains("a0_p02") && err.contains("bond_any_iterate"),
+            "{err}"
+        );
+    }
+}
