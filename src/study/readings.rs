@@ -161,6 +161,40 @@ pub fn catalogue(base: &Scenario) -> Vec<Reading> {
             json!({ "physics": { "cooling": "off" } }),
         ));
     }
+    // Every reading the paper of the scene's duration law prints, taken together.
+    let printed: &[&str] = match i.duration {
+        DurationLaw::P04 => &[
+            "friction_uncapped",
+            "solver_plain",
+            "contact_nearest_neighbour",
+        ],
+        DurationLaw::P02 => &[
+            "friction_uncapped",
+            "bond_any_iterate",
+            "separation_velocities",
+            "solver_plain",
+            "contact_nearest_neighbour",
+            "cooling_p02_as_printed",
+        ],
+    };
+    let mut patch = json!({});
+    let mut taken = Vec::new();
+    for r in out.iter().filter(|r| printed.contains(&r.key.as_str())) {
+        merge(&mut patch, &r.patch);
+        taken.push(r.key.clone());
+    }
+    if taken.len() > 1 {
+        let paper = match i.duration {
+            DurationLaw::P04 => "P04",
+            DurationLaw::P02 => "P02",
+        };
+        out.push(Reading::new(
+            "papers_as_printed",
+            &format!("all of: {}", taken.join(" + ")),
+            &format!("{paper} as printed where it is explicit"),
+            patch,
+        ));
+    }
     if i.duration == DurationLaw::P04 {
         // P04's own experiment: a0, af, β unstated (docs/model.md §13) and two printed
         // statements of the y/z velocity amplitudes; μ's table factor printed as 10⁻².
@@ -214,6 +248,9 @@ pub struct ReadingsArgs {
     /// The published b_f/b0 to compare with (P04 rank 1: 3.23; P02 rank 1: 2).
     #[arg(long)]
     pub target_growth: Option<f64>,
+    /// Override time.max_steps of every run (a run that reaches it counts as failed).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub max_steps: Option<u64>,
     /// List the readings offered for the scenario and exit.
     #[arg(long)]
     pub list: bool,
@@ -234,6 +271,7 @@ pub fn run_cli(args: &ReadingsArgs) -> anyhow::Result<()> {
         p02_steps: args.p02_steps,
         only: args.only.clone(),
         target_growth: args.target_growth,
+        max_steps: args.max_steps,
     };
     let study = run_readings(&base, &options, |line| eprintln!("{line}"))?;
     write_readings(&args.out, &study)?;
@@ -253,6 +291,8 @@ pub struct ReadingsOptions {
     pub only: Vec<String>,
     /// The paper's published b_f/b0, drawn on the chart and compared in the table.
     pub target_growth: Option<f64>,
+    /// Override `time.max_steps` of every run (bounds runs a reading makes very slow).
+    pub max_steps: Option<u64>,
 }
 
 impl Default for ReadingsOptions {
@@ -262,6 +302,7 @@ impl Default for ReadingsOptions {
             p02_steps: None,
             only: Vec::new(),
             target_growth: None,
+            max_steps: None,
         }
     }
 }
@@ -336,6 +377,7 @@ pub struct ReadingsStudy {
     pub seeds: Vec<u64>,
     pub target_growth: Option<f64>,
     pub p02_steps: Option<u32>,
+    pub max_steps: Option<u64>,
     pub readings: Vec<Reading>,
     pub runs: Vec<Run>,
     pub summaries: Vec<ReadingSummary>,
@@ -359,9 +401,23 @@ pub fn scenario_for(
     seed: u64,
     p02_steps: Option<u32>,
 ) -> Result<Scenario, ScenarioError> {
+    scenario_capped(base, reading, seed, p02_steps, None)
+}
+
+/// [`scenario_for`] with `time.max_steps` overridden when given.
+pub fn scenario_capped(
+    base: &Scenario,
+    reading: &Reading,
+    seed: u64,
+    p02_steps: Option<u32>,
+    max_steps: Option<u64>,
+) -> Result<Scenario, ScenarioError> {
     let mut value = serde_json::to_value(base).expect("a scenario serialises"); // ok: plain data
     merge(&mut value, &reading.patch);
     value["seed"] = Value::from(seed);
+    if let Some(n) = max_steps {
+        value["time"]["max_steps"] = Value::from(n);
+    }
     let mut scenario = Scenario::from_value(value)?;
     if let Some(steps) = p02_steps {
         let end = p02_end_time(&scenario);
@@ -442,9 +498,15 @@ pub fn run_readings(
     let runs: Vec<Run> = jobs
         .par_iter()
         .map(|&(r, seed)| {
-            let result = scenario_for(base, &readings[r], seed, options.p02_steps)
-                .map_err(|e| e.to_string())
-                .and_then(|s| measure(&s));
+            let result = scenario_capped(
+                base,
+                &readings[r],
+                seed,
+                options.p02_steps,
+                options.max_steps,
+            )
+            .map_err(|e| e.to_string())
+            .and_then(|s| measure(&s));
             match &result {
                 Ok(m) => log(&format!(
                     "{} seed {seed}: b_f/b0 = {:.4} ({:.2} s)",
@@ -473,6 +535,7 @@ pub fn run_readings(
         seeds,
         target_growth: options.target_growth,
         p02_steps: options.p02_steps,
+        max_steps: options.max_steps,
         readings,
         runs,
         summaries,
@@ -646,13 +709,17 @@ pub fn write_readings(dir: &Path, study: &ReadingsStudy) -> anyhow::Result<()> {
 /// The summary table in Markdown.
 pub fn markdown(study: &ReadingsStudy) -> String {
     let mut s = format!(
-        "{} — {} seeds ({}…{}){}\n\n",
+        "{} — {} seeds ({}…{}){}{}\n\n",
         study.scenario,
         study.seeds.len(),
         study.seeds.first().copied().unwrap_or(0),
         study.seeds.last().copied().unwrap_or(0),
         match study.p02_steps {
             Some(n) => format!(", T from P02 (13) with {n} fixed steps"),
+            None => String::new(),
+        },
+        match study.max_steps {
+            Some(n) => format!(", at most {n} steps per run"),
             None => String::new(),
         }
     );
