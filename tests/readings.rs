@@ -456,3 +456,36 @@ mod study {
         );
     }
 }
+
+mod settings {
+    use agglo::prelude::*;
+    use agglo::study::readings::with_settings;
+
+    #[test]
+    fn set_changes_the_scene_and_refuses_unknown_fields() {
+        let base = Scenario::load(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/scenarios/paper2002_best.json"
+        )))
+        .unwrap();
+        let s = with_settings(
+            &base,
+            &[
+                "box.half_width=1e-4".into(),
+                "impact.pair_hardness=max".into(),
+            ],
+        )
+        .unwrap();
+        assert_eq!(s.domain.half_width, 1e-4);
+        assert_eq!(s.impact.pair_hardness, agglo::scenario::PairHardness::Max);
+        assert!(s.name.contains("box.half_width=1e-4"));
+        let err = with_settings(&base, &["box.half_widht=1e-4".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("half_widht"), "{err}");
+        let err = with_settings(&base, &["box.half_width=-1".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("box.half_width"), "{err}");
+    }
+}
