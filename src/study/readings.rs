@@ -842,7 +842,10 @@ fn err<E: std::fmt::Display>(e: E) -> anyhow::Error {
     anyhow::anyhow!("drawing: {e}")
 }
 
-/// b_f/b0 of each reading (mean ± 2 s.e., every run as a dot), the baseline's
+/// Most runs drawn as dots on the chart.
+const MAX_DOTS: usize = 1000;
+
+/// b_f/b0 of each reading (mean ± 2 s.e., every run as a dot up to [`MAX_DOTS`]), the baseline's
 /// ± 2 s.e. band shaded and the published value drawn across.
 struct Chart<'a>(&'a ReadingsStudy);
 
@@ -918,9 +921,15 @@ impl Figure for Chart<'_> {
                 .label(format!("published {t}"))
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 15, y)], RED));
         }
+        // Every run as a dot, unless there are so many that the SVG would run to megabytes.
         let dots = RGBColor(120, 120, 120);
+        let shown = if s.runs.len() <= MAX_DOTS {
+            &s.runs[..]
+        } else {
+            &[]
+        };
         chart
-            .draw_series(s.runs.iter().filter_map(|r| {
+            .draw_series(shown.iter().filter_map(|r| {
                 r.result
                     .as_ref()
                     .ok()
