@@ -489,3 +489,67 @@ mod settings {
         assert!(err.contains("box.half_width"), "{err}");
     }
 }
+
+mod command_line {
+    use std::process::Command;
+
+    fn agglo() -> Command {
+        Command::new(env!("CARGO_BIN_EXE_agglo"))
+    }
+
+    const TWO_BODY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/two_body.json");
+
+    #[test]
+    fn study_readings_writes_its_files_and_refuses_unknown_readings() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = agglo()
+            .args(["study", "readings", TWO_BODY, "--seeds", "2", "--out"])
+            .arg(dir.path())
+            .args(["--only", "pair_hardness_max,bond_any_iterate"])
+            .args(["--set", "impact.a0=0.3"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let table = String::from_utf8_lossy(&out.stdout);
+        assert!(table.contains("two_body (impact.a0=0.3)"), "{table}");
+        // Two grains at 3 m/s each bond under every reading: b_f/b0 = 2^(1/3).
+        assert!(
+            table.contains("| `bond_any_iterate` |") && table.contains("1.260"),
+            "{table}"
+        );
+        for file in [
+            "readings.csv",
+            "runs.csv",
+            "readings.md",
+            "readings.png",
+            "readings.svg",
+        ] {
+            assert!(dir.path().join(file).exists(), "{file}");
+        }
+
+        let listed = agglo()
+            .args(["study", "readings", TWO_BODY, "--out"])
+            .arg(dir.path())
+            .arg("--list")
+            .output()
+            .unwrap();
+        assert!(String::from_utf8_lossy(&listed.stdout).contains("separation_velocities"));
+
+        let bad = agglo()
+            .args(["study", "readings", TWO_BODY, "--out"])
+            .arg(dir.path())
+            .args(["--only", "softest_hardness"])
+            .output()
+            .unwrap();
+        assert!(!bad.status.success());
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(
+            err.contains("softest_hardness") && err.contains("pair_hardness_max"),
+            "{err}"
+        );
+    }
+}
