@@ -189,8 +189,9 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
     let (mut vti_new, mut vtj_new) = (vti, vtj);
     if slip_speed > 0.0 && mu > 0.0 {
         let coulomb = mu * force * duration;
+        let reduced = mi * mj / (mi + mj);
         let jt = match model.friction_cap {
-            FrictionCap::Sticking => coulomb.min(slip_speed * mi * mj / (mi + mj)),
+            FrictionCap::Sticking => coulomb.min(slip_speed * reduced),
             FrictionCap::None => coulomb,
         };
         let t_hat = slip / slip_speed;
