@@ -267,6 +267,11 @@ pub struct ReadingsArgs {
     /// JSON value, e.g. `--set box.half_width=1e-4` (repeatable).
     #[arg(long = "set", value_name = "PATH=VALUE")]
     pub set: Vec<String>,
+    /// Run every combination of readings instead: one group per `--combine`, its
+    /// alternatives separated by `|` (a combination takes none or one of each group),
+    /// e.g. `--combine solver_plain|solver_plain_cap_parity --combine v_rel_yz_10`.
+    #[arg(long, value_name = "KEY|KEY…")]
+    pub combine: Vec<String>,
     /// List the readings offered for the scenario and exit.
     #[arg(long)]
     pub list: bool,
@@ -319,6 +324,11 @@ pub fn run_cli(args: &ReadingsArgs) -> anyhow::Result<()> {
         seeds: args.seeds as usize,
         p02_steps: args.p02_steps,
         only: args.only.clone(),
+        combine: args
+            .combine
+            .iter()
+            .map(|g| g.split('|').map(str::to_string).collect())
+            .collect(),
         target_growth: args.target_growth,
         max_steps: args.max_steps,
     };
@@ -338,6 +348,10 @@ pub struct ReadingsOptions {
     pub p02_steps: Option<u32>,
     /// Run only these readings (keys; the baseline is always run). Empty: all.
     pub only: Vec<String>,
+    /// Instead of the readings one at a time, every combination: one group per entry,
+    /// each group a set of mutually exclusive readings of which a combination takes none
+    /// or one (e.g. `["solver_plain", "solver_plain_cap_parity"]`).
+    pub combine: Vec<Vec<String>>,
     /// The paper's published b_f/b0, drawn on the chart and compared in the table.
     pub target_growth: Option<f64>,
     /// Override `time.max_steps` of every run (bounds runs a reading makes very slow).
@@ -350,6 +364,7 @@ impl Default for ReadingsOptions {
             seeds: 10,
             p02_steps: None,
             only: Vec::new(),
+            combine: Vec::new(),
             target_growth: None,
             max_steps: None,
         }
@@ -413,6 +428,8 @@ pub struct ReadingSummary {
     pub reaction_over_dissipation: f64,
     /// Mean b_f/b0 minus the baseline's.
     pub delta: f64,
+    /// (mean b_f/b0 − published value) / s.e. (NaN without a published value).
+    pub z_target: f64,
     /// delta / √(se² + se_baseline²) (0 for the baseline; NaN if both errors are 0 and
     /// delta ≠ 0).
     pub z: f64,
@@ -516,6 +533,40 @@ pub fn measure(scenario: &Scenario) -> Result<RunStats, String> {
     })
 }
 
+/// Every combination of the groups' readings (none or one per group), the baseline
+/// (nothing taken) first; patches are merged in group order, keys joined by `+`.
+pub fn combinations(all: &[Reading], groups: &[Vec<String>]) -> Vec<Reading> {
+    let find = |key: &str| all.iter().find(|r| r.key == key).cloned();
+    let mut out = vec![all[0].clone()];
+    for group in groups {
+        let mut next = Vec::new();
+        for combo in &out {
+            next.push(combo.clone());
+            for key in group {
+                let Some(r) = find(key) else { continue };
+                let mut patch = combo.patch.clone();
+                merge(&mut patch, &r.patch);
+                let (key, what) = if combo.key == BASELINE {
+                    (r.key.clone(), r.what.clone())
+                } else {
+                    (
+                        format!("{}+{}", combo.key, r.key),
+                        format!("{}; {}", combo.what, r.what),
+                    )
+                };
+                next.push(Reading {
+                    key,
+                    what,
+                    source: "combination".into(),
+                    patch,
+                });
+            }
+        }
+        out = next;
+    }
+    out
+}
+
 /// Run the baseline and every selected reading over the seeds.
 pub fn run_readings(
     base: &Scenario,
@@ -524,7 +575,7 @@ pub fn run_readings(
 ) -> anyhow::Result<ReadingsStudy> {
     anyhow::ensure!(options.seeds >= 1, "--seeds must be ≥ 1");
     let all = catalogue(base);
-    for key in &options.only {
+    for key in options.only.iter().chain(options.combine.iter().flatten()) {
         anyhow::ensure!(
             all.iter().any(|r| &r.key == key),
             "unknown reading `{key}` for this scene; available: {}",
@@ -534,10 +585,15 @@ pub fn run_readings(
                 .join(", ")
         );
     }
-    let readings: Vec<Reading> = all
-        .into_iter()
-        .filter(|r| r.key == BASELINE || options.only.is_empty() || options.only.contains(&r.key))
-        .collect();
+    let readings: Vec<Reading> = if options.combine.is_empty() {
+        all.into_iter()
+            .filter(|r| {
+                r.key == BASELINE || options.only.is_empty() || options.only.contains(&r.key)
+            })
+            .collect()
+    } else {
+        combinations(&all, &options.combine)
+    };
     let seeds: Vec<u64> = (0..options.seeds as u64)
         .map(|k| base.seed.wrapping_add(k))
         .collect();
@@ -573,6 +629,13 @@ pub fn run_readings(
     let mut summaries: Vec<ReadingSummary> = (0..readings.len())
         .map(|r| summarise(runs.iter().filter(|run| run.reading == r)))
         .collect();
+    for s in summaries.iter_mut() {
+        s.z_target = match options.target_growth {
+            Some(t) if s.growth_mean != t => (s.growth_mean - t) / s.growth_se,
+            Some(_) => 0.0,
+            None => f64::NAN,
+        };
+    }
     let (m0, se0) = (summaries[0].growth_mean, summaries[0].growth_se);
     for s in summaries.iter_mut().skip(1) {
         s.delta = s.growth_mean - m0;
@@ -646,6 +709,7 @@ pub fn write_readings(dir: &Path, study: &ReadingsStudy) -> anyhow::Result<()> {
         "growth_se",
         "delta",
         "z",
+        "z_target",
         "mass_mean_ratio",
         "pi04",
         "pi02",
@@ -675,6 +739,7 @@ pub fn write_readings(dir: &Path, study: &ReadingsStudy) -> anyhow::Result<()> {
                 num(s.growth_se),
                 num(s.delta),
                 num(s.z),
+                num(s.z_target),
                 num(s.mass_mean_ratio),
                 num(s.pi04),
                 num(s.pi02),
@@ -746,12 +811,11 @@ pub fn write_readings(dir: &Path, study: &ReadingsStudy) -> anyhow::Result<()> {
         .collect();
     write_csv(&dir.join("runs.csv"), &run_header, &run_rows)?;
     std::fs::write(dir.join("readings.md"), markdown(study))?;
-    save_png_and_svg(
-        dir,
-        "readings",
-        (1000, 160 + 34 * study.readings.len() as u32),
-        &Chart(study),
-    )?;
+    // One row per reading: beyond MAX_CHART_ROWS (combination runs) the table is the result.
+    if study.readings.len() <= MAX_CHART_ROWS {
+        let height = 160 + 34 * study.readings.len() as u32;
+        save_png_and_svg(dir, "readings", (1000, height), &Chart(study))?;
+    }
     Ok(())
 }
 
@@ -775,8 +839,8 @@ pub fn markdown(study: &ReadingsStudy) -> String {
     if let Some(t) = study.target_growth {
         s += &format!("Published b_f/b0: {t}.\n\n");
     }
-    s += "| reading | what | b_f/b0 (± s.e.) | Δ vs baseline | z | (N0/N_f)^(1/3) | Π04 | Π02 | bonds | failed |\n";
-    s += "|---|---|---|---|---|---|---|---|---|---|\n";
+    s += "| reading | what | b_f/b0 (± s.e.) | Δ vs baseline | z | z vs published | (N0/N_f)^(1/3) | Π04 | Π02 | bonds | failed |\n";
+    s += "|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (r, m) in study.readings.iter().zip(&study.summaries) {
         let ok = m.runs - m.failures;
         let (growth, delta, z) = if ok == 0 {
@@ -803,14 +867,20 @@ pub fn markdown(study: &ReadingsStudy) -> String {
                 format!("{x:.p$}")
             }
         };
+        let z_target = if ok == 0 || m.z_target.is_nan() {
+            "–".to_string()
+        } else {
+            format!("{:+.1}", m.z_target)
+        };
         s += &format!(
-            "| `{}` | {} ({}) | {} | {} | {} | {} | {} | {} | {} | {}/{} |\n",
+            "| `{}` | {} ({}) | {} | {} | {} | {} | {} | {} | {} | {} | {}/{} |\n",
             r.key,
             r.what,
             r.source,
             growth,
             delta,
             z,
+            z_target,
             val(m.mass_mean_ratio, 3),
             val(m.pi04, 3),
             val(m.pi02, 4),
@@ -818,6 +888,33 @@ pub fn markdown(study: &ReadingsStudy) -> String {
             m.failures,
             m.runs
         );
+    }
+    if let Some(t) = study.target_growth {
+        let close: Vec<_> = study
+            .readings
+            .iter()
+            .zip(&study.summaries)
+            .filter(|(_, m)| m.runs > m.failures && m.z_target.abs() <= 2.0)
+            .collect();
+        if close.is_empty() {
+            s += &format!("\nNo reading lands within 2 s.e. of the published {t}.\n");
+        } else {
+            s += &format!("\nWithin 2 s.e. of the published {t}:\n\n");
+            for (r, m) in close {
+                s += &format!(
+                    "- `{}`: {:.3} ± {:.3} (z = {:+.1}{})\n",
+                    r.key,
+                    m.growth_mean,
+                    m.growth_se,
+                    m.z_target,
+                    if m.failures > 0 {
+                        format!(", {} of {} runs failed", m.failures, m.runs)
+                    } else {
+                        String::new()
+                    }
+                );
+            }
+        }
     }
     let failures: Vec<_> = study
         .readings
@@ -841,6 +938,9 @@ fn text(size: u32) -> TextStyle<'static> {
 fn err<E: std::fmt::Display>(e: E) -> anyhow::Error {
     anyhow::anyhow!("drawing: {e}")
 }
+
+/// Most readings drawn on the chart.
+const MAX_CHART_ROWS: usize = 40;
 
 /// Most runs drawn as dots on the chart.
 const MAX_DOTS: usize = 1000;
@@ -970,6 +1070,37 @@ impl Figure for Chart<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn combinations_take_none_or_one_of_each_group() {
+        let base =
+            Scenario::from_json(include_str!("../../scenarios/paper2004_best.json")).unwrap();
+        let all = catalogue(&base);
+        let groups = vec![
+            vec![
+                "solver_plain".to_string(),
+                "solver_plain_cap_parity".to_string(),
+            ],
+            vec!["v_rel_yz_10".to_string()],
+        ];
+        let combos = combinations(&all, &groups);
+        let keys: Vec<&str> = combos.iter().map(|r| r.key.as_str()).collect();
+        assert_eq!(
+            keys,
+            [
+                BASELINE,
+                "v_rel_yz_10",
+                "solver_plain",
+                "solver_plain+v_rel_yz_10",
+                "solver_plain_cap_parity",
+                "solver_plain_cap_parity+v_rel_yz_10",
+            ]
+        );
+        // The merged patch carries both readings.
+        let s = scenario_for(&base, &combos[5], base.seed, None).unwrap();
+        assert_eq!(s.impact.max_iterations, 101);
+        assert_eq!(s.cloud.v_rel[1], 10.0);
+    }
 
     #[test]
     fn the_catalogue_changes_every_scene_it_is_offered_for() {
