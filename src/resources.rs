@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::scenario::{
     BondTest, ContactRule, CoolingMethod, DurationLaw, FrictionCap, PairHardness, Scenario,
-    Separation, SolverKind, Stepping,
+    Separation, SolverKind, Stepping, WorkHeat,
 };
 
 /// Universal gas constant R [J/(mol K)].
@@ -123,6 +123,7 @@ pub struct ImpactSettings {
     pub friction_cap: FrictionCap,
     pub bond_test: BondTest,
     pub separation: Separation,
+    pub work_heat: WorkHeat,
 }
 
 impl ImpactSettings {
@@ -141,6 +142,7 @@ impl ImpactSettings {
             friction_cap: i.friction_cap,
             bond_test: i.bond_test,
             separation: i.separation,
+            work_heat: i.work_heat,
         }
     }
 }
@@ -312,6 +314,10 @@ pub struct EnergyLedger {
     /// Σ m C (θ_after − θ_before) over every body they changed [J] (negative if they cool).
     #[serde(default)]
     pub external_heat: f64,
+    /// Heat the reading `impact.work_heat = "twice"` (P04 (6.10)) adds on top of the
+    /// dissipation: the dissipated energy counted a second time, i.e. created [J].
+    #[serde(default)]
+    pub double_counted_heat: f64,
 }
 
 /// Reference totals at t = 0 and the worst invariant errors seen.

@@ -181,6 +181,22 @@ pub struct ImpactModel {
     /// moves b(1 − δ) along its own outgoing velocity, δ = |r_ij|/(b_i + b_j)).
     #[serde(default, skip_serializing_if = "is_default")]
     pub separation: Separation,
+    /// Reading: `once` heats the pair by its kinetic-energy loss W (P02 (14)–(17); default);
+    /// `twice` is P04 (6.10), which adds the deformation work δW — the same dissipated
+    /// energy — on top, so the pair is heated by W more (docs/model.md §5.1 step 6).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub work_heat: WorkHeat,
+}
+
+/// How often the dissipated energy heats the pair (docs/model.md §5.1 step 6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum WorkHeat {
+    /// W once, split equally (P02 (14)–(17)).
+    #[default]
+    Once,
+    /// W twice: δK plus the deformation work δW of P04 (4.7)–(4.9), (6.10).
+    Twice,
 }
 
 fn is_default<T: Default + PartialEq>(x: &T) -> bool {
@@ -257,6 +273,7 @@ impl Default for ImpactModel {
             friction_cap: FrictionCap::Sticking,
             bond_test: BondTest::FixedPoint,
             separation: Separation::Normal,
+            work_heat: WorkHeat::Once,
         }
     }
 }

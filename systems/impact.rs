@@ -21,7 +21,9 @@ use crate::resources::{
     BoxGeometry, ContactList, Counters, EnergyLedger, ImpactRecord, ImpactRecords, ImpactSettings,
     MaterialConstants, SimClock, StateChanged, hardness,
 };
-use crate::scenario::{BondTest, DurationLaw, FrictionCap, PairHardness, Separation, SolverKind};
+use crate::scenario::{
+    BondTest, DurationLaw, FrictionCap, PairHardness, Separation, SolverKind, WorkHeat,
+};
 
 /// One body's state entering an impact.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -65,6 +67,8 @@ pub struct PairModel {
     pub friction_cap: FrictionCap,
     /// When the pair bonds (a reading, §5.3).
     pub bond_test: BondTest,
+    /// Whether the dissipation heats the pair once or twice (a reading, §5.1 step 6).
+    pub work_heat: WorkHeat,
 }
 
 impl PairModel {
@@ -86,6 +90,7 @@ impl PairModel {
             pair_hardness: settings.pair_hardness,
             friction_cap: settings.friction_cap,
             bond_test: settings.bond_test,
+            work_heat: settings.work_heat,
         }
     }
 }
@@ -213,8 +218,9 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
     };
     let reaction_heat = model.alpha * contact_area;
     let c = model.heat_capacity;
-    let temperature_i = bi.temperature + dissipated / (2.0 * mi * c) + reaction_heat / (mi * c);
-    let temperature_j = bj.temperature + dissipated / (2.0 * mj * c) + reaction_heat / (mj * c);
+    let heat = dissipated * work_heat_factor(model.work_heat);
+    let temperature_i = bi.temperature + heat / (2.0 * mi * c) + reaction_heat / (mi * c);
+    let temperature_j = bj.temperature + heat / (2.0 * mj * c) + reaction_heat / (mj * c);
     let hi = hardness(model.h0, model.activation_energy, temperature_i);
     let hj = hardness(model.h0, model.activation_energy, temperature_j);
 
@@ -237,6 +243,14 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
         dissipated,
         reaction_heat,
         contact_area,
+    }
+}
+
+/// How many times the dissipated energy W heats the pair: 1, or 2 under P04 (6.10).
+fn work_heat_factor(rule: WorkHeat) -> f64 {
+    match rule {
+        WorkHeat::Once => 1.0,
+        WorkHeat::Twice => 2.0,
     }
 }
 
@@ -534,13 +548,14 @@ pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3
         .max(0.0);
         let c = model.heat_capacity;
         let rc = at_zero.reaction_heat;
+        let heat = dissipated * work_heat_factor(model.work_heat);
         PairOutcome {
             restitution: 0.0,
             bonded: true,
             velocity_i: v_cm,
             velocity_j: v_cm,
-            temperature_i: bi.temperature + dissipated / (2.0 * mi * c) + rc / (mi * c),
-            temperature_j: bj.temperature + dissipated / (2.0 * mj * c) + rc / (mj * c),
+            temperature_i: bi.temperature + heat / (2.0 * mi * c) + rc / (mi * c),
+            temperature_j: bj.temperature + heat / (2.0 * mj * c) + rc / (mj * c),
             dissipated,
             reaction_heat: 2.0 * rc,
             lost_i: lost(mi, bi.velocity, v_cm),
@@ -689,6 +704,9 @@ pub fn resolve_impacts(
         }
         ledger.reaction_heat += out.reaction_heat;
         ledger.impact_dissipation += out.dissipated;
+        if model.work_heat == WorkHeat::Twice {
+            ledger.double_counted_heat += out.dissipated;
+        }
         records.records.push(ImpactRecord {
             a: contact.a,
             b: contact.b,
@@ -726,6 +744,7 @@ mod tests {
             pair_hardness: PairHardness::Min,
             friction_cap: FrictionCap::Sticking,
             bond_test: BondTest::FixedPoint,
+            work_heat: WorkHeat::Once,
         }
     }
 

@@ -43,6 +43,7 @@ fn model(a0: f64, q: f64, heat_capacity: f64) -> PairModel {
         pair_hardness: PairHardness::Min,
         friction_cap: FrictionCap::Sticking,
         bond_test: BondTest::FixedPoint,
+        work_heat: Default::default(),
     }
 }
 
@@ -178,6 +179,47 @@ fn uncapped_friction_reverses_the_sliding_by_the_coulomb_impulse_and_the_ledgers
         "dissipation {dissipation} vs {}",
         normal_loss - created
     );
+}
+
+#[test]
+fn p04_double_counted_work_heats_a_bouncing_pair_by_exactly_w_more() {
+    // A head-on bounce below the critical speed, no reaction heat, no softening, no
+    // cooling: the pair's heat is W once (P02 (14)–(17)) or 2W (P04 (6.10)).
+    let heat_of = |work_heat: &str| {
+        let mut patch = pair(-0.002, 2.0, 0.002, -2.0);
+        merge(
+            &mut patch,
+            json!({ "impact": { "work_heat": work_heat }, "time": { "end": 0.002 } }),
+        );
+        let mut sim = Simulation::new(&scenario(patch)).expect("builds");
+        sim.run().expect("runs, with the ledgers closing");
+        assert_eq!(sim.counters().bounces, 1, "{work_heat}");
+        let c = 1000.0;
+        let heat: f64 = sim
+            .bodies()
+            .iter()
+            .map(|b| b.mass * c * (b.temperature - 300.0))
+            .sum();
+        (heat, sim.ledger())
+    };
+    let (once, ledger_once) = heat_of("once");
+    let (twice, ledger_twice) = heat_of("twice");
+    let w = ledger_once.impact_dissipation;
+    assert!(w > 0.0);
+    // The motion is the same (Q = 0: heat does not feed back), so W is too.
+    assert_eq!(ledger_twice.impact_dissipation, w);
+    // 1e-9: temperature rises of ~1e-3 K on 300 K carry rounding ~1e-13 relative to W.
+    assert!((once - w).abs() < 1e-9 * w, "once: {once} vs W = {w}");
+    assert!(
+        (twice - 2.0 * w).abs() < 1e-9 * w,
+        "twice: {twice} vs 2W = {}",
+        2.0 * w
+    );
+    assert_eq!(
+        ledger_twice.double_counted_heat, w,
+        "the created heat is tallied"
+    );
+    assert_eq!(ledger_once.double_counted_heat, 0.0);
 }
 
 /// Λ at which P02 (20)'s first iterate e1 = 1 − Λ already presses at 2H (two identical

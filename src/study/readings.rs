@@ -94,6 +94,12 @@ pub fn catalogue(base: &Scenario) -> Vec<Reading> {
         json!({ "impact": { "friction_cap": "none" } }),
     ));
     out.push(Reading::new(
+        "work_heat_twice",
+        "the dissipation heats the pair twice: dK plus the deformation work dW",
+        "P04 (6.8) and (6.10)",
+        json!({ "impact": { "work_heat": "twice" } }),
+    ));
+    out.push(Reading::new(
         "bond_any_iterate",
         "bond as soon as an iterate from e0 = 0 presses at 2H",
         "P02 (20) in-loop accretion test",

@@ -112,6 +112,7 @@ impl PairSetup {
             pair_hardness: Default::default(),
             friction_cap: Default::default(),
             bond_test: Default::default(),
+            work_heat: Default::default(),
         }
     }
     /// Hardness at θ0 [Pa].
