@@ -296,6 +296,13 @@ pub enum SolverKind {
     Safeguarded,
     /// The papers' fixed-point iteration alone (for stability studies).
     Plain,
+    /// Reading: the closed form's smaller root as the answer, no iteration — the
+    /// quadratic of docs/model.md §5.2 with the pre-impact hardness (exact without
+    /// softening).
+    ClosedForm,
+    /// Reading: the same with P04 (4.14)'s coefficient c1 as printed, which carries a
+    /// spurious λ (docs/model.md §14); `p04` duration law only.
+    ClosedFormPrinted,
 }
 
 /// End time and step control (docs/model.md §4).
@@ -721,6 +728,14 @@ impl Scenario {
         v.range_open("impact.tol", i.tol, 0.0, 1.0, "0 < tol < 1");
         if i.max_iterations == 0 {
             v.push("impact.max_iterations", "≥ 1", 0.0);
+        }
+        if i.solver == SolverKind::ClosedFormPrinted && i.duration != DurationLaw::P04 {
+            v.issues.push(ValidationIssue {
+                path: "impact.solver".into(),
+                message: "closed_form_printed is P04 (4.14), derived for P04's duration law: \
+                          it needs impact.duration = \"p04\""
+                    .into(),
+            });
         }
 
         let t = &self.time;

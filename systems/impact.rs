@@ -454,10 +454,7 @@ pub fn restitution_seed(
     if h.is_infinite() {
         return Some(1.0);
     }
-    let bmin = bi.radius.min(bj.radius);
-    let reduced = bi.mass * bj.mass / (bi.mass + bj.mass);
-    let force = reduced * closing * closing / (2.0 * model.beta * bmin);
-    let lambda = force / (2.0 * std::f64::consts::PI * bmin * bmin * h);
+    let lambda = closed_form_lambda(model, bi, bj, closing, h);
     let kappa = match model.duration {
         DurationLaw::P04 => 0.0,
         DurationLaw::P02 => 1.0,
@@ -475,6 +472,63 @@ pub fn restitution_seed(
     }
     // The smaller root without cancellation: 2 qc / (−qb + √disc).
     let e = 2.0 * qc / (-qb + disc.sqrt());
+    (0.0..=1.0).contains(&e).then_some(e)
+}
+
+/// λ = m_red w² / (2 β b · 2π b² H) of the closed form (docs/model.md §5.2), with the
+/// closing speed `closing` [m/s] and the pair hardness `h` [Pa] (finite).
+fn closed_form_lambda(
+    model: &PairModel,
+    bi: &PairBody,
+    bj: &PairBody,
+    closing: f64,
+    h: f64,
+) -> f64 {
+    let bmin = bi.radius.min(bj.radius);
+    let reduced = bi.mass * bj.mass / (bi.mass + bj.mass);
+    let force = reduced * closing * closing / (2.0 * model.beta * bmin);
+    force / (2.0 * std::f64::consts::PI * bmin * bmin * h)
+}
+
+/// P04 (4.14) as printed: the smaller root of e² + c1 e + c2 = 0 with
+/// c1 = (λ − (a0 − 2af))/(a0 − af) (the printed, wrong coefficient) and
+/// c2 = (λ − af)/(a0 − af), λ from [`closed_form_lambda`] with the pre-impact pair
+/// hardness; 0 (bond) for λ ≥ af. `None` when the pair does not approach or the
+/// printed quadratic has no root in [0, 1].
+pub fn printed_closed_form(
+    model: &PairModel,
+    bi: &PairBody,
+    bj: &PairBody,
+    normal: DVec3,
+) -> Option<f64> {
+    let closing = (bi.velocity - bj.velocity).dot(normal);
+    if closing.is_nan() || closing <= 0.0 {
+        return None;
+    }
+    let h = pair_hardness(
+        model.pair_hardness,
+        hardness(model.h0, model.activation_energy, bi.temperature),
+        hardness(model.h0, model.activation_energy, bj.temperature),
+    );
+    if h.is_infinite() {
+        return Some(1.0);
+    }
+    let lambda = closed_form_lambda(model, bi, bj, closing, h);
+    let (a0, af) = (model.a0, model.af);
+    if lambda >= af {
+        return Some(0.0);
+    }
+    if a0 == af {
+        return Some(1.0 - lambda / af); // G does not depend on e
+    }
+    let c1 = (lambda - (a0 - 2.0 * af)) / (a0 - af);
+    let c2 = (lambda - af) / (a0 - af);
+    let disc = c1 * c1 - 4.0 * c2;
+    if disc.is_nan() || disc < 0.0 {
+        return None;
+    }
+    // The smaller root without cancellation: 2 c2 / (−c1 + √disc) (here −c1 > 0).
+    let e = 2.0 * c2 / (-c1 + disc.sqrt());
     (0.0..=1.0).contains(&e).then_some(e)
 }
 
@@ -523,13 +577,25 @@ pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3
             method: SolveMethod::IterateBonded,
         }
     } else {
+        let answer = match model.solver {
+            SolverKind::ClosedForm => restitution_seed(model, bi, bj, normal),
+            SolverKind::ClosedFormPrinted => printed_closed_form(model, bi, bj, normal),
+            SolverKind::Safeguarded | SolverKind::Plain => None,
+        };
         let seed = match model.solver {
             SolverKind::Safeguarded => restitution_seed(model, bi, bj, normal),
-            SolverKind::Plain => None,
+            SolverKind::Plain | SolverKind::ClosedForm | SolverKind::ClosedFormPrinted => None,
         };
-        match seed {
-            Some(seed) => find_fixed_point_from(model, seed, g),
-            None => find_fixed_point(model, g),
+        match (answer, seed) {
+            // A closed form taken as the answer: one evaluation of G, no check.
+            (Some(e), _) => FixedPoint {
+                e,
+                iterations: 1,
+                fallback_iterations: 0,
+                method: SolveMethod::ClosedForm,
+            },
+            (None, Some(seed)) => find_fixed_point_from(model, seed, g),
+            (None, None) => find_fixed_point(model, g),
         }
     };
     let (mi, mj) = (bi.mass, bj.mass);

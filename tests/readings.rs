@@ -222,6 +222,56 @@ fn p04_double_counted_work_heats_a_bouncing_pair_by_exactly_w_more() {
     assert_eq!(ledger_once.double_counted_heat, 0.0);
 }
 
+#[test]
+fn p04_printed_closed_form_gives_its_own_wrong_restitution() {
+    // Identical grains head on, a0 = 0, af = 1, no heating: the corrected closed form is
+    // e = 1 − √λ (docs/model.md §14); P04 (4.14) as printed, e² − (λ + 2) e + (1 − λ) = 0,
+    // gives e = [(λ + 2) − √(λ² + 8λ)]/2 instead.
+    let rho = RHO;
+    for lambda in [0.1, 0.25, 0.6] {
+        let vp = (lambda * 3.0 * H0 / (2.0 * rho)).sqrt();
+        let e_of = |solver: &str| {
+            let mut patch = pair(-0.002, vp, 0.002, -vp);
+            merge(
+                &mut patch,
+                json!({ "impact": { "a0": 0.0, "solver": solver }, "time": { "end": 0.002 / vp + 1e-4 } }),
+            );
+            let mut sim = Simulation::new(&scenario(patch)).expect("builds");
+            sim.run().expect("runs");
+            assert_eq!(sim.counters().bounces, 1, "{solver} at λ = {lambda}");
+            let b = sim.bodies();
+            (b[1].velocity.x - b[0].velocity.x) / (2.0 * vp)
+        };
+        let corrected = 1.0 - lambda.sqrt();
+        let printed = ((lambda + 2.0) - (lambda * lambda + 8.0 * lambda).sqrt()) / 2.0;
+        // 1e-9: the roots are exact to rounding; velocities add rounding of ~1e-16.
+        for (solver, expected) in [
+            ("closed_form", corrected),
+            ("safeguarded", corrected),
+            ("closed_form_printed", printed),
+        ] {
+            let e = e_of(solver);
+            assert!(
+                (e - expected).abs() < 1e-9,
+                "{solver}, λ = {lambda}: e = {e} vs {expected}"
+            );
+        }
+        assert!(
+            printed < corrected - 0.01,
+            "the printed form dissipates more at λ = {lambda}"
+        );
+    }
+    // The printed form is refused with P02's duration law, naming the field.
+    let text = std::fs::read_to_string("scenarios/paper2002_best.json").unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["impact"]["solver"] = json!("closed_form_printed");
+    let err = Scenario::from_value(v).unwrap_err().to_string();
+    assert!(
+        err.contains("impact.solver") && err.contains("p04"),
+        "{err}"
+    );
+}
+
 /// Λ at which P02 (20)'s first iterate e1 = 1 − Λ already presses at 2H (two identical
 /// grains, P02 duration law, af = 1): Λ(2 − Λ)² = a0 + (1 − a0)Λ, by bisection.
 fn first_iterate_threshold(a0: f64) -> f64 {

@@ -152,6 +152,20 @@ pub fn catalogue(base: &Scenario) -> Vec<Reading> {
             json!({ "impact": { "solver": "plain", "max_iterations": cap } }),
         ));
     }
+    out.push(Reading::new(
+        "solver_closed_form",
+        "the closed form's root as the answer (pre-impact hardness; no iteration)",
+        "P04 (4.13)-(4.14) corrected (docs/model.md §14)",
+        json!({ "impact": { "solver": "closed_form" } }),
+    ));
+    if i.duration == DurationLaw::P04 {
+        out.push(Reading::new(
+            "solver_closed_form_printed",
+            "P04 (4.14) as printed (spurious lambda in c1) as the answer",
+            "P04 (4.14)",
+            json!({ "impact": { "solver": "closed_form_printed" } }),
+        ));
+    }
     if base.physics.contact_rule != ContactRule::NearestNeighbour {
         out.push(Reading::new(
             "contact_nearest_neighbour",
