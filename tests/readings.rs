@@ -591,6 +591,73 @@ mod command_line {
 
     const TWO_BODY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/two_body.json");
 
+    /// `agglo run FILE --seed S --summary` for each seed, and `agglo study readings` over
+    /// the same seeds: the study's baseline runs and its ensemble mean agree bit for bit.
+    #[test]
+    fn the_study_agrees_with_a_loop_of_agglo_run_bit_for_bit() {
+        let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/paper2004_best.json");
+        let dir = tempfile::tempdir().unwrap();
+        let seeds = [2004u64, 2005, 2006];
+        let mut direct = Vec::new();
+        for seed in seeds {
+            let summary = dir.path().join(format!("s{seed}.json"));
+            let out = agglo()
+                .args(["run", scene, "-q", "--seed", &seed.to_string(), "--summary"])
+                .arg(&summary)
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let v: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+            direct.push(v["growth"]["growth_ratio"].as_f64().unwrap());
+        }
+        let study_dir = dir.path().join("study");
+        let out = agglo()
+            .args([
+                "study", "readings", scene, "--seeds", "3", "--only", "a0_p02", "--out",
+            ])
+            .arg(&study_dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        // runs.csv: reading, seed, growth_ratio, … (shortest round-trip floats).
+        let runs = std::fs::read_to_string(study_dir.join("runs.csv")).unwrap();
+        let baseline: Vec<(u64, f64)> = runs
+            .lines()
+            .skip(1)
+            .filter(|l| l.starts_with("baseline,"))
+            .map(|l| {
+                let f: Vec<&str> = l.split(',').collect();
+                (f[1].parse().unwrap(), f[2].parse().unwrap())
+            })
+            .collect();
+        assert_eq!(baseline.len(), 3);
+        for (seed, growth) in &baseline {
+            let k = seeds.iter().position(|s| s == seed).unwrap();
+            assert_eq!(growth.to_bits(), direct[k].to_bits(), "seed {seed}");
+        }
+        // The ensemble mean is the mean of those runs, in seed order.
+        let mean = direct.iter().sum::<f64>() / 3.0;
+        let table = std::fs::read_to_string(study_dir.join("readings.csv")).unwrap();
+        let row = table.lines().find(|l| l.starts_with("baseline,")).unwrap();
+        let header: Vec<&str> = table.lines().next().unwrap().split(',').collect();
+        let col = header.iter().position(|h| *h == "growth_mean").unwrap();
+        let got: f64 = row.split(',').nth(col).unwrap().parse().unwrap();
+        assert_eq!(
+            got.to_bits(),
+            mean.to_bits(),
+            "ensemble mean {got} vs {mean}"
+        );
+    }
+
     #[test]
     fn study_readings_writes_its_files_and_refuses_unknown_readings() {
         let dir = tempfile::tempdir().unwrap();
