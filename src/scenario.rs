@@ -439,6 +439,9 @@ pub enum CoolingMethod {
     Off,
     /// Forward Euler (the papers' choice, P04 (6.21)); conditionally stable.
     Explicit,
+    /// Reading: forward Euler kept from blowing up — a step that would cross the
+    /// equilibrium temperature stops at it (stepped core only, like `explicit`).
+    ExplicitClamped,
     /// Backward Euler by safeguarded Newton; unconditionally stable and monotone. The
     /// event core integrates cooling accurately instead (as `exact`).
     #[default]
@@ -611,8 +614,11 @@ impl Scenario {
         if self.physics.contact_rule != ContactRule::All {
             return Some("physics.contact_rule = \"all\"");
         }
-        if self.physics.cooling == CoolingMethod::Explicit {
-            return Some("physics.cooling other than \"explicit\"");
+        if matches!(
+            self.physics.cooling,
+            CoolingMethod::Explicit | CoolingMethod::ExplicitClamped
+        ) {
+            return Some("physics.cooling other than \"explicit\" or \"explicit_clamped\"");
         }
         None
     }

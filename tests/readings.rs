@@ -272,6 +272,46 @@ fn p04_printed_closed_form_gives_its_own_wrong_restitution() {
     );
 }
 
+#[test]
+fn clamped_explicit_cooling_stops_at_the_equilibrium_where_forward_euler_goes_negative() {
+    use agglo::systems::cooling::CoolingLaw;
+    // Radiation only (equilibrium θs = 300 K), a step far beyond the explicit limit.
+    let law = CoolingLaw {
+        k_convection: 0.0,
+        k_radiation: 1e-12,
+        theta_gas: 300.0,
+        theta_far: 300.0,
+    };
+    let (theta, dt) = (1e6, 1.0); // rate ≈ −1e12 K/s: forward Euler lands at ≈ −1e12 K
+    assert!(law.explicit_step(theta, dt) < 0.0);
+    assert_eq!(law.explicit_clamped_step(theta, dt), 300.0);
+    // Within the stable range the two are the same step, bit for bit.
+    let small = 1e-9;
+    assert_eq!(
+        law.explicit_clamped_step(theta, small),
+        law.explicit_step(theta, small)
+    );
+    // Below the equilibrium it heats, again without crossing.
+    assert_eq!(law.explicit_clamped_step(100.0, 1e9), 300.0);
+    // In a run: the hot pair of a bond cools to θs with the clamp; P04's scene, which
+    // breaks with plain forward Euler, runs (a short stretch of it).
+    let mut s = Scenario::load(std::path::Path::new("scenarios/paper2004_best.json")).unwrap();
+    s.time.end = 2e-3;
+    s.physics.cooling = agglo::scenario::CoolingMethod::ExplicitClamped;
+    assert!(
+        !s.uses_event_core(),
+        "explicit cooling runs on the stepped core"
+    );
+    let mut sim = Simulation::new(&s).unwrap();
+    sim.run().expect("runs without invariant errors");
+    assert!(sim.summary().invariant_violations.is_empty());
+    assert!(
+        sim.bodies()
+            .iter()
+            .all(|b| b.temperature >= 300.0 * (1.0 - 1e-12))
+    );
+}
+
 /// Λ at which P02 (20)'s first iterate e1 = 1 − Λ already presses at 2H (two identical
 /// grains, P02 duration law, af = 1): Λ(2 − Λ)² = a0 + (1 − a0)Λ, by bisection.
 fn first_iterate_threshold(a0: f64) -> f64 {

@@ -183,6 +183,14 @@ pub fn catalogue(base: &Scenario) -> Vec<Reading> {
             json!({ "physics": { "cooling": "explicit" } }),
         ));
     }
+    if cools && base.physics.cooling != CoolingMethod::ExplicitClamped {
+        out.push(Reading::new(
+            "cooling_explicit_clamped",
+            "forward Euler cooling stopped at the equilibrium instead of crossing it (stepped core)",
+            "P04 (6.21); P02 (19) without the blow-up",
+            json!({ "physics": { "cooling": "explicit_clamped" } }),
+        ));
+    }
     if cools && i.duration == DurationLaw::P02 && base.physics.cooling != CoolingMethod::Off {
         // P02 (18)-(19) as printed cool per unit volume: about b/3 (~1e-6 here) times the
         // engine's per-area rate, i.e. practically not at all (docs/model.md §8).
