@@ -105,6 +105,10 @@ fn pair_solve(c: &mut Criterion) {
         tol: 1e-12,
         max_iterations: 100,
         solver: agglo::scenario::SolverKind::Safeguarded,
+        pair_hardness: Default::default(),
+        friction_cap: Default::default(),
+        bond_test: Default::default(),
+        work_heat: Default::default(),
     };
     c.bench_function("pair solve a0=0.5, Q=0 (closed form)", |b| {
         b.iter(|| solve_pair(&model, &body(2.0), &body(-2.0), DVec3::X))

@@ -100,6 +100,9 @@ pub enum StudyCommand {
         #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
         seeds: u32,
     },
+    /// Run one scene under each alternative reading of the papers over an ensemble of seeds;
+    /// write readings.csv, runs.csv, readings.md and a chart.
+    Readings(agglo::study::readings::ReadingsArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -503,6 +506,7 @@ fn run_study(command: StudyCommand, cluster: Option<&agglo::farm::Cluster>) -> a
             stability::write_stability(&out, &study)?;
             println!("wrote {}", out.display());
         }
+        StudyCommand::Readings(args) => agglo::study::readings::run_cli(&args)?,
     }
     Ok(())
 }

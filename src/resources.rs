@@ -14,7 +14,10 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use serde::{Deserialize, Serialize};
 
-use crate::scenario::{ContactRule, CoolingMethod, DurationLaw, Scenario, SolverKind, Stepping};
+use crate::scenario::{
+    BondTest, ContactRule, CoolingMethod, DurationLaw, FrictionCap, PairHardness, Scenario,
+    Separation, SolverKind, Stepping, WorkHeat,
+};
 
 /// Universal gas constant R [J/(mol K)].
 pub const GAS_CONSTANT: f64 = 8.314462618;
@@ -116,6 +119,11 @@ pub struct ImpactSettings {
     pub tol: f64,
     pub max_iterations: u32,
     pub solver: SolverKind,
+    pub pair_hardness: PairHardness,
+    pub friction_cap: FrictionCap,
+    pub bond_test: BondTest,
+    pub separation: Separation,
+    pub work_heat: WorkHeat,
 }
 
 impl ImpactSettings {
@@ -130,6 +138,11 @@ impl ImpactSettings {
             tol: i.tol,
             max_iterations: i.max_iterations,
             solver: i.solver,
+            pair_hardness: i.pair_hardness,
+            friction_cap: i.friction_cap,
+            bond_test: i.bond_test,
+            separation: i.separation,
+            work_heat: i.work_heat,
         }
     }
 }
@@ -301,6 +314,10 @@ pub struct EnergyLedger {
     /// Σ m C (θ_after − θ_before) over every body they changed [J] (negative if they cool).
     #[serde(default)]
     pub external_heat: f64,
+    /// Heat the reading `impact.work_heat = "twice"` (P04 (6.10)) adds on top of the
+    /// dissipation: the dissipated energy counted a second time, i.e. created [J].
+    #[serde(default)]
+    pub double_counted_heat: f64,
 }
 
 /// Reference totals at t = 0 and the worst invariant errors seen.

@@ -161,6 +161,94 @@ pub struct ImpactModel {
     /// `plain` (the papers' iteration only; non-convergence is counted, the last iterate used).
     #[serde(default)]
     pub solver: SolverKind,
+    /// Reading: which hardness a pair bonds against in G(e) (docs/model.md §5.1 step 7):
+    /// `min` (the softer body governs, P04's footnote to (3.1); default), `harmonic`,
+    /// `arithmetic` (means of the two) or `max` (both surfaces must yield).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub pair_hardness: PairHardness,
+    /// Reading: `sticking` caps the friction impulse where sliding stops (default), `none`
+    /// applies the papers' full Coulomb impulse, which can reverse sliding and create
+    /// kinetic energy (docs/model.md §5.1 step 5).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub friction_cap: FrictionCap,
+    /// Reading: `fixed_point` bonds only when e* = 0 (default); `any_iterate` is P02 (20),
+    /// which bonds as soon as one iterate of the papers' iteration from e0 = 0 presses at
+    /// ≥ 2H (docs/model.md §5.3).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub bond_test: BondTest,
+    /// Reading: how a bouncing pair that overlaps is separated: `normal` (along n̂,
+    /// mass-weighted, centre of mass fixed; default) or `velocities` (P02 (8): each body
+    /// moves b(1 − δ) along its own outgoing velocity, δ = |r_ij|/(b_i + b_j)).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub separation: Separation,
+    /// Reading: `once` heats the pair by its kinetic-energy loss W (P02 (14)–(17); default);
+    /// `twice` is P04 (6.10), which adds the deformation work δW — the same dissipated
+    /// energy — on top, so the pair is heated by W more (docs/model.md §5.1 step 6).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub work_heat: WorkHeat,
+}
+
+/// How often the dissipated energy heats the pair (docs/model.md §5.1 step 6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum WorkHeat {
+    /// W once, split equally (P02 (14)–(17)).
+    #[default]
+    Once,
+    /// W twice: δK plus the deformation work δW of P04 (4.7)–(4.9), (6.10).
+    Twice,
+}
+
+fn is_default<T: Default + PartialEq>(x: &T) -> bool {
+    *x == T::default()
+}
+
+/// Which hardness a pair bonds against (docs/model.md §5.1 step 7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PairHardness {
+    /// min(H_i, H_j): the softer body governs (P04, footnote to (3.1) and §6(b)).
+    #[default]
+    Min,
+    /// 2 H_i H_j / (H_i + H_j).
+    Harmonic,
+    /// (H_i + H_j) / 2.
+    Arithmetic,
+    /// max(H_i, H_j): both surfaces must yield.
+    Max,
+}
+
+/// Whether the tangential (friction) impulse is capped (docs/model.md §5.1 step 5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum FrictionCap {
+    /// Capped at the impulse m_red |v_ti − v_tj| that stops the sliding.
+    #[default]
+    Sticking,
+    /// The papers' uncapped impulse μ Ī δτ (P04 (4.17), P02 (7)); may create energy.
+    None,
+}
+
+/// When a pair bonds (docs/model.md §5.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum BondTest {
+    /// Only when the fixed point itself is e* = 0.
+    #[default]
+    FixedPoint,
+    /// P02 (20): when any iterate of the papers' iteration from e0 = 0 reaches P ≥ 2H.
+    AnyIterate,
+}
+
+/// How an overlapping bouncing pair is separated (docs/model.md §5.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Separation {
+    /// Along n̂ to touching, each body in inverse proportion to its mass.
+    #[default]
+    Normal,
+    /// P02 (8): r_i += b_i (1 − δ) v_i/|v_i|, and the same for j.
+    Velocities,
 }
 
 fn default_solver_tol() -> f64 {
@@ -181,6 +269,11 @@ impl Default for ImpactModel {
             tol: default_solver_tol(),
             max_iterations: default_max_iterations(),
             solver: SolverKind::Safeguarded,
+            pair_hardness: PairHardness::Min,
+            friction_cap: FrictionCap::Sticking,
+            bond_test: BondTest::FixedPoint,
+            separation: Separation::Normal,
+            work_heat: WorkHeat::Once,
         }
     }
 }
@@ -203,6 +296,13 @@ pub enum SolverKind {
     Safeguarded,
     /// The papers' fixed-point iteration alone (for stability studies).
     Plain,
+    /// Reading: the closed form's smaller root as the answer, no iteration — the
+    /// quadratic of docs/model.md §5.2 with the pre-impact hardness (exact without
+    /// softening).
+    ClosedForm,
+    /// Reading: the same with P04 (4.14)'s coefficient c1 as printed, which carries a
+    /// spurious λ (docs/model.md §14); `p04` duration law only.
+    ClosedFormPrinted,
 }
 
 /// End time and step control (docs/model.md §4).
@@ -339,6 +439,9 @@ pub enum CoolingMethod {
     Off,
     /// Forward Euler (the papers' choice, P04 (6.21)); conditionally stable.
     Explicit,
+    /// Reading: forward Euler kept from blowing up — a step that would cross the
+    /// equilibrium temperature stops at it (stepped core only, like `explicit`).
+    ExplicitClamped,
     /// Backward Euler by safeguarded Newton; unconditionally stable and monotone. The
     /// event core integrates cooling accurately instead (as `exact`).
     #[default]
@@ -511,8 +614,11 @@ impl Scenario {
         if self.physics.contact_rule != ContactRule::All {
             return Some("physics.contact_rule = \"all\"");
         }
-        if self.physics.cooling == CoolingMethod::Explicit {
-            return Some("physics.cooling other than \"explicit\"");
+        if matches!(
+            self.physics.cooling,
+            CoolingMethod::Explicit | CoolingMethod::ExplicitClamped
+        ) {
+            return Some("physics.cooling other than \"explicit\" or \"explicit_clamped\"");
         }
         None
     }
@@ -628,6 +734,14 @@ impl Scenario {
         v.range_open("impact.tol", i.tol, 0.0, 1.0, "0 < tol < 1");
         if i.max_iterations == 0 {
             v.push("impact.max_iterations", "≥ 1", 0.0);
+        }
+        if i.solver == SolverKind::ClosedFormPrinted && i.duration != DurationLaw::P04 {
+            v.issues.push(ValidationIssue {
+                path: "impact.solver".into(),
+                message: "closed_form_printed is P04 (4.14), derived for P04's duration law: \
+                          it needs impact.duration = \"p04\""
+                    .into(),
+            });
         }
 
         let t = &self.time;

@@ -42,6 +42,7 @@ impl CoolingLaw {
         match method {
             CoolingMethod::Off => theta,
             CoolingMethod::Explicit => self.explicit_step(theta, dt),
+            CoolingMethod::ExplicitClamped => self.explicit_clamped_step(theta, dt),
             CoolingMethod::Implicit => self.implicit_step(theta, dt),
             CoolingMethod::Exact => self.advance(theta, dt),
         }

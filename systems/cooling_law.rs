@@ -93,6 +93,16 @@ impl CoolingLaw {
         theta + dt * self.rate(theta)
     }
 
+    /// Forward Euler step that stops at the equilibrium temperature instead of crossing
+    /// it (the `explicit_clamped` reading): the papers' scheme without its blow-up.
+    pub fn explicit_clamped_step(&self, theta: f64, dt: f64) -> f64 {
+        let next = self.explicit_step(theta, dt);
+        match self.equilibrium_temperature() {
+            Some(eq) => next.clamp(theta.min(eq), theta.max(eq)),
+            None => theta,
+        }
+    }
+
     /// Backward Euler step: solves θ − θ_old − Δt·rate(θ) = 0 by Newton, safeguarded by
     /// the bracket [min(θ_old, θ0, θs), max(θ_old, θ0, θs)] on which the residual changes sign.
     pub fn implicit_step(&self, theta_old: f64, dt: f64) -> f64 {

@@ -142,8 +142,10 @@ pub fn check_invariants(
 pub fn energy_error(now: f64, initial: f64, ledger: &EnergyLedger) -> f64 {
     let expected = initial + ledger.reaction_heat - ledger.fracture_energy - ledger.cooling_loss
         + ledger.force_work
-        + ledger.external_heat;
+        + ledger.external_heat
+        + ledger.double_counted_heat;
     let turnover = initial.abs()
+        + ledger.double_counted_heat.abs()
         + ledger.reaction_heat.abs()
         + ledger.fracture_energy.abs()
         + ledger.cooling_loss.abs()
@@ -172,8 +174,10 @@ pub fn thermal_error(now: f64, initial: f64, ledger: &EnergyLedger) -> f64 {
     let expected = initial + ledger.impact_dissipation + ledger.reaction_heat
         - ledger.fracture_energy
         - ledger.cooling_loss
-        + ledger.external_heat;
+        + ledger.external_heat
+        + ledger.double_counted_heat;
     let scale = initial.abs()
+        + ledger.double_counted_heat.abs()
         + ledger.impact_dissipation.abs()
         + ledger.reaction_heat.abs()
         + ledger.fracture_energy.abs()

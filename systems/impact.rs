@@ -21,7 +21,9 @@ use crate::resources::{
     BoxGeometry, ContactList, Counters, EnergyLedger, ImpactRecord, ImpactRecords, ImpactSettings,
     MaterialConstants, SimClock, StateChanged, hardness,
 };
-use crate::scenario::{DurationLaw, SolverKind};
+use crate::scenario::{
+    BondTest, DurationLaw, FrictionCap, PairHardness, Separation, SolverKind, WorkHeat,
+};
 
 /// One body's state entering an impact.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,6 +61,14 @@ pub struct PairModel {
     /// Plain iterations before the fallback.
     pub max_iterations: u32,
     pub solver: SolverKind,
+    /// Which hardness the pair bonds against (a reading, docs/model.md §5.1 step 7).
+    pub pair_hardness: PairHardness,
+    /// Whether the friction impulse is capped at sticking (a reading, §5.1 step 5).
+    pub friction_cap: FrictionCap,
+    /// When the pair bonds (a reading, §5.3).
+    pub bond_test: BondTest,
+    /// Whether the dissipation heats the pair once or twice (a reading, §5.1 step 6).
+    pub work_heat: WorkHeat,
 }
 
 impl PairModel {
@@ -77,6 +87,10 @@ impl PairModel {
             tol: settings.tol,
             max_iterations: settings.max_iterations,
             solver: settings.solver,
+            pair_hardness: settings.pair_hardness,
+            friction_cap: settings.friction_cap,
+            bond_test: settings.bond_test,
+            work_heat: settings.work_heat,
         }
     }
 }
@@ -111,6 +125,9 @@ pub enum SolveMethod {
     ClosedForm,
     /// The closed-form seed bracketed the root, which Illinois then found.
     Seeded,
+    /// Bond test `any_iterate`: an iterate of the papers' iteration pressed at ≥ 2H and
+    /// the pair bonded there (P02 (20)), whatever the fixed point.
+    IterateBonded,
 }
 
 /// Result of one pair solve.
@@ -176,8 +193,12 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
     let slip_speed = slip.length();
     let (mut vti_new, mut vtj_new) = (vti, vtj);
     if slip_speed > 0.0 && mu > 0.0 {
+        let coulomb = mu * force * duration;
         let reduced = mi * mj / (mi + mj);
-        let jt = (mu * force * duration).min(slip_speed * reduced);
+        let jt = match model.friction_cap {
+            FrictionCap::Sticking => coulomb.min(slip_speed * reduced),
+            FrictionCap::None => coulomb,
+        };
         let t_hat = slip / slip_speed;
         vti_new -= (jt / mi) * t_hat;
         vtj_new += (jt / mj) * t_hat;
@@ -187,18 +208,24 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
 
     // 6. heat: W split equally, reaction heat R_c to each body (P02 (14)–(17))
     let ke = |m: f64, v: DVec3| 0.5 * m * v.length_squared();
-    let dissipated =
-        (ke(mi, bi.velocity) + ke(mj, bj.velocity) - ke(mi, velocity_i) - ke(mj, velocity_j))
-            .max(0.0);
+    let loss = ke(mi, bi.velocity) + ke(mj, bj.velocity) - ke(mi, velocity_i) - ke(mj, velocity_j);
+    // W ≥ 0 in exact arithmetic when friction is capped, so a negative value is rounding;
+    // uncapped friction can really create kinetic energy, which then leaves the heat
+    // (signed W) so that the energy ledgers still close (docs/model.md §10).
+    let dissipated = match model.friction_cap {
+        FrictionCap::Sticking => loss.max(0.0),
+        FrictionCap::None => loss,
+    };
     let reaction_heat = model.alpha * contact_area;
     let c = model.heat_capacity;
-    let temperature_i = bi.temperature + dissipated / (2.0 * mi * c) + reaction_heat / (mi * c);
-    let temperature_j = bj.temperature + dissipated / (2.0 * mj * c) + reaction_heat / (mj * c);
+    let heat = dissipated * work_heat_factor(model.work_heat);
+    let temperature_i = bi.temperature + heat / (2.0 * mi * c) + reaction_heat / (mi * c);
+    let temperature_j = bj.temperature + heat / (2.0 * mj * c) + reaction_heat / (mj * c);
     let hi = hardness(model.h0, model.activation_energy, temperature_i);
     let hj = hardness(model.h0, model.activation_energy, temperature_j);
 
-    // 7. G(e) = max(1 − Ī / (2 a_c min H), 0), never forming 0·∞
-    let h = hi.min(hj);
+    // 7. G(e) = max(1 − Ī / (2 a_c H_pair), 0), never forming 0·∞
+    let h = pair_hardness(model.pair_hardness, hi, hj);
     let g = if h.is_infinite() {
         1.0
     } else if contact_area <= 0.0 {
@@ -217,6 +244,45 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
         reaction_heat,
         contact_area,
     }
+}
+
+/// How many times the dissipated energy W heats the pair: 1, or 2 under P04 (6.10).
+fn work_heat_factor(rule: WorkHeat) -> f64 {
+    match rule {
+        WorkHeat::Once => 1.0,
+        WorkHeat::Twice => 2.0,
+    }
+}
+
+/// The hardness a pair bonds against, from the two bodies' hardnesses [Pa] (either may
+/// be +∞, docs/model.md §1); never NaN for non-NaN inputs.
+pub fn pair_hardness(rule: PairHardness, hi: f64, hj: f64) -> f64 {
+    match rule {
+        PairHardness::Min => hi.min(hj),
+        PairHardness::Max => hi.max(hj),
+        PairHardness::Arithmetic => 0.5 * hi + 0.5 * hj,
+        // 2/(1/H_i + 1/H_j): an infinite hardness contributes 0, so ∞ and H give 2H.
+        PairHardness::Harmonic => 2.0 / (1.0 / hi + 1.0 / hj),
+    }
+}
+
+/// P02 (20)'s in-loop accretion test: the papers' iteration from e0 = 0, bonding as
+/// soon as one iterate presses at ≥ 2H, i.e. G(e_K) = 0 (G is clamped at 0 exactly
+/// there). Returns the iterations used if the pair bonds this way, `None` when the
+/// iteration converges (or runs out of iterations) without such an iterate.
+fn bonds_at_an_iterate(model: &PairModel, g: impl Fn(f64) -> f64) -> Option<u32> {
+    let mut e = 0.0_f64;
+    for k in 1..=model.max_iterations {
+        let next = g(e);
+        if next <= 0.0 {
+            return Some(k);
+        }
+        if converged(model.tol, e, next) {
+            return None;
+        }
+        e = next;
+    }
+    None
 }
 
 /// Converged when |e_{K+1} − e_K| ≤ TOL·e_K, with an absolute floor so that e = 0 converges.
@@ -380,18 +446,15 @@ pub fn restitution_seed(
     if closing.is_nan() || closing <= 0.0 {
         return None;
     }
-    let h = hardness(model.h0, model.activation_energy, bi.temperature).min(hardness(
-        model.h0,
-        model.activation_energy,
-        bj.temperature,
-    ));
+    let h = pair_hardness(
+        model.pair_hardness,
+        hardness(model.h0, model.activation_energy, bi.temperature),
+        hardness(model.h0, model.activation_energy, bj.temperature),
+    );
     if h.is_infinite() {
         return Some(1.0);
     }
-    let bmin = bi.radius.min(bj.radius);
-    let reduced = bi.mass * bj.mass / (bi.mass + bj.mass);
-    let force = reduced * closing * closing / (2.0 * model.beta * bmin);
-    let lambda = force / (2.0 * std::f64::consts::PI * bmin * bmin * h);
+    let lambda = closed_form_lambda(model, bi, bj, closing, h);
     let kappa = match model.duration {
         DurationLaw::P04 => 0.0,
         DurationLaw::P02 => 1.0,
@@ -409,6 +472,63 @@ pub fn restitution_seed(
     }
     // The smaller root without cancellation: 2 qc / (−qb + √disc).
     let e = 2.0 * qc / (-qb + disc.sqrt());
+    (0.0..=1.0).contains(&e).then_some(e)
+}
+
+/// λ = m_red w² / (2 β b · 2π b² H) of the closed form (docs/model.md §5.2), with the
+/// closing speed `closing` [m/s] and the pair hardness `h` [Pa] (finite).
+fn closed_form_lambda(
+    model: &PairModel,
+    bi: &PairBody,
+    bj: &PairBody,
+    closing: f64,
+    h: f64,
+) -> f64 {
+    let bmin = bi.radius.min(bj.radius);
+    let reduced = bi.mass * bj.mass / (bi.mass + bj.mass);
+    let force = reduced * closing * closing / (2.0 * model.beta * bmin);
+    force / (2.0 * std::f64::consts::PI * bmin * bmin * h)
+}
+
+/// P04 (4.14) as printed: the smaller root of e² + c1 e + c2 = 0 with
+/// c1 = (λ − (a0 − 2af))/(a0 − af) (the printed, wrong coefficient) and
+/// c2 = (λ − af)/(a0 − af), λ from [`closed_form_lambda`] with the pre-impact pair
+/// hardness; 0 (bond) for λ ≥ af. `None` when the pair does not approach or the
+/// printed quadratic has no root in [0, 1].
+pub fn printed_closed_form(
+    model: &PairModel,
+    bi: &PairBody,
+    bj: &PairBody,
+    normal: DVec3,
+) -> Option<f64> {
+    let closing = (bi.velocity - bj.velocity).dot(normal);
+    if closing.is_nan() || closing <= 0.0 {
+        return None;
+    }
+    let h = pair_hardness(
+        model.pair_hardness,
+        hardness(model.h0, model.activation_energy, bi.temperature),
+        hardness(model.h0, model.activation_energy, bj.temperature),
+    );
+    if h.is_infinite() {
+        return Some(1.0);
+    }
+    let lambda = closed_form_lambda(model, bi, bj, closing, h);
+    let (a0, af) = (model.a0, model.af);
+    if lambda >= af {
+        return Some(0.0);
+    }
+    if a0 == af {
+        return Some(1.0 - lambda / af); // G does not depend on e
+    }
+    let c1 = (lambda - (a0 - 2.0 * af)) / (a0 - af);
+    let c2 = (lambda - af) / (a0 - af);
+    let disc = c1 * c1 - 4.0 * c2;
+    if disc.is_nan() || disc < 0.0 {
+        return None;
+    }
+    // The smaller root without cancellation: 2 c2 / (−c1 + √disc) (here −c1 > 0).
+    let e = 2.0 * c2 / (-c1 + disc.sqrt());
     (0.0..=1.0).contains(&e).then_some(e)
 }
 
@@ -445,13 +565,38 @@ pub fn find_fixed_point_from(model: &PairModel, seed: f64, g: impl Fn(f64) -> f6
 /// the `plain` solver is the papers' iteration from e0 = 0, kept for the studies.
 pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3) -> PairOutcome {
     let g = |e| trial(model, bi, bj, normal, e).g;
-    let seed = match model.solver {
-        SolverKind::Safeguarded => restitution_seed(model, bi, bj, normal),
-        SolverKind::Plain => None,
+    let accreted = match model.bond_test {
+        BondTest::FixedPoint => None,
+        BondTest::AnyIterate => bonds_at_an_iterate(model, g),
     };
-    let fp = match seed {
-        Some(seed) => find_fixed_point_from(model, seed, g),
-        None => find_fixed_point(model, g),
+    let fp = if let Some(iterations) = accreted {
+        FixedPoint {
+            e: 0.0,
+            iterations,
+            fallback_iterations: 0,
+            method: SolveMethod::IterateBonded,
+        }
+    } else {
+        let answer = match model.solver {
+            SolverKind::ClosedForm => restitution_seed(model, bi, bj, normal),
+            SolverKind::ClosedFormPrinted => printed_closed_form(model, bi, bj, normal),
+            SolverKind::Safeguarded | SolverKind::Plain => None,
+        };
+        let seed = match model.solver {
+            SolverKind::Safeguarded => restitution_seed(model, bi, bj, normal),
+            SolverKind::Plain | SolverKind::ClosedForm | SolverKind::ClosedFormPrinted => None,
+        };
+        match (answer, seed) {
+            // A closed form taken as the answer: one evaluation of G, no check.
+            (Some(e), _) => FixedPoint {
+                e,
+                iterations: 1,
+                fallback_iterations: 0,
+                method: SolveMethod::ClosedForm,
+            },
+            (None, Some(seed)) => find_fixed_point_from(model, seed, g),
+            (None, None) => find_fixed_point(model, g),
+        }
     };
     let (mi, mj) = (bi.mass, bj.mass);
     let total = mi + mj;
@@ -469,13 +614,14 @@ pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3
         .max(0.0);
         let c = model.heat_capacity;
         let rc = at_zero.reaction_heat;
+        let heat = dissipated * work_heat_factor(model.work_heat);
         PairOutcome {
             restitution: 0.0,
             bonded: true,
             velocity_i: v_cm,
             velocity_j: v_cm,
-            temperature_i: bi.temperature + dissipated / (2.0 * mi * c) + rc / (mi * c),
-            temperature_j: bj.temperature + dissipated / (2.0 * mj * c) + rc / (mj * c),
+            temperature_i: bi.temperature + heat / (2.0 * mi * c) + rc / (mi * c),
+            temperature_j: bj.temperature + heat / (2.0 * mj * c) + rc / (mj * c),
             dissipated,
             reaction_heat: 2.0 * rc,
             lost_i: lost(mi, bi.velocity, v_cm),
@@ -585,12 +731,24 @@ pub fn resolve_impacts(
         if !out.bonded {
             // Push an overlapping pair apart along n to touching; the centre of mass stays.
             // The image met may not be the nearest one when bodies are large.
-            let overlap = ra.0 + rb.0 - contact.separation.length();
+            let distance = contact.separation.length();
+            let overlap = ra.0 + rb.0 - distance;
             if overlap > 0.0 {
                 clock.bodies_pushed = true;
-                let total = ma.0 + mb.0;
-                pa.0 = geometry.wrap(pa.0 - contact.normal * (overlap * mb.0 / total));
-                pb.0 = geometry.wrap(pb.0 + contact.normal * (overlap * ma.0 / total));
+                match settings.separation {
+                    Separation::Normal => {
+                        let total = ma.0 + mb.0;
+                        pa.0 = geometry.wrap(pa.0 - contact.normal * (overlap * mb.0 / total));
+                        pb.0 = geometry.wrap(pb.0 + contact.normal * (overlap * ma.0 / total));
+                    }
+                    Separation::Velocities => {
+                        // P02 (8): each body moves b (1 − δ) along its own outgoing
+                        // velocity (none if it is at rest), δ = |r_ij| / (b_i + b_j).
+                        let shortfall = 1.0 - distance / (ra.0 + rb.0);
+                        pa.0 = geometry.wrap(pa.0 + va.0.normalize_or_zero() * (ra.0 * shortfall));
+                        pb.0 = geometry.wrap(pb.0 + vb.0.normalize_or_zero() * (rb.0 * shortfall));
+                    }
+                }
             }
         }
 
@@ -603,12 +761,18 @@ pub fn resolve_impacts(
         counters.fixed_point_iterations += u64::from(out.iterations);
         counters.fallback_iterations += u64::from(out.fallback_iterations);
         match out.method {
-            SolveMethod::FixedPoint | SolveMethod::ClosedForm | SolveMethod::Seeded => {}
+            SolveMethod::FixedPoint
+            | SolveMethod::ClosedForm
+            | SolveMethod::Seeded
+            | SolveMethod::IterateBonded => {}
             SolveMethod::Fallback => counters.fallbacks += 1,
             SolveMethod::Unconverged => counters.unconverged += 1,
         }
         ledger.reaction_heat += out.reaction_heat;
         ledger.impact_dissipation += out.dissipated;
+        if model.work_heat == WorkHeat::Twice {
+            ledger.double_counted_heat += out.dissipated;
+        }
         records.records.push(ImpactRecord {
             a: contact.a,
             b: contact.b,
@@ -643,6 +807,10 @@ mod tests {
             tol: 1e-12,
             max_iterations: 100,
             solver: SolverKind::Safeguarded,
+            pair_hardness: PairHardness::Min,
+            friction_cap: FrictionCap::Sticking,
+            bond_test: BondTest::FixedPoint,
+            work_heat: WorkHeat::Once,
         }
     }
 

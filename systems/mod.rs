@@ -65,7 +65,7 @@ fn core_reason(s: &Scenario) -> String {
         }
         Core::Stepped => "time.core = \"stepped\"".into(),
         Core::Auto if s.uses_event_core() => "time.core = \"auto\" and the scene allows it \
-             (adaptive stepping with step_factor = 1, contact rule \"all\", cooling not \"explicit\")"
+             (adaptive stepping with step_factor = 1, contact rule \"all\", cooling not \"explicit\" or \"explicit_clamped\")"
             .into(),
         Core::Auto => format!("time.core = \"auto\", and {}", event_core_obstacle(s)),
     }

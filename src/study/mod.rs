@@ -8,12 +8,16 @@
 //! - [`stability`]: where methods fail — the pair solve's plain iteration against the
 //!   safeguarded solver over speed × a0 (with and without thermal softening), explicit
 //!   against implicit cooling over Δt × θ, and the collisions a step size misses.
+//! - [`readings`]: the scene under each alternative reading of the papers (the model's
+//!   decisions made the other way), over an ensemble of seeds, against the baseline and
+//!   the published value. Writes `readings.csv`, `runs.csv`, `readings.md` and a chart.
 //! - [`charts`]: the figures, drawn through [`crate::charts::save_png_and_svg`].
 //!
 //! Everything here is deterministic except the measured wall times.
 
 pub mod accuracy;
 pub mod charts;
+pub mod readings;
 pub mod stability;
 
 use std::io::Write;

@@ -109,6 +109,10 @@ impl PairSetup {
             tol,
             max_iterations,
             solver,
+            pair_hardness: Default::default(),
+            friction_cap: Default::default(),
+            bond_test: Default::default(),
+            work_heat: Default::default(),
         }
     }
     /// Hardness at θ0 [Pa].
@@ -194,6 +198,7 @@ fn method_name(m: SolveMethod) -> &'static str {
         SolveMethod::Unconverged => "unconverged",
         SolveMethod::ClosedForm => "closed_form",
         SolveMethod::Seeded => "seeded",
+        SolveMethod::IterateBonded => "iterate_bonded",
     }
 }
 
