@@ -506,7 +506,16 @@ fn run_study(command: StudyCommand, cluster: Option<&agglo::farm::Cluster>) -> a
             stability::write_stability(&out, &study)?;
             println!("wrote {}", out.display());
         }
-        StudyCommand::Readings(args) => agglo::study::readings::run_cli(&args)?,
+        StudyCommand::Readings(args) => {
+            let workers = agglo::farm::Workers {
+                threads: ranks::threads(args.threads, cluster),
+                cluster,
+            };
+            agglo::study::readings::run_cli(&args, &workers)?;
+            if let Some(line) = ranks::report(cluster) {
+                eprintln!("{line}");
+            }
+        }
     }
     Ok(())
 }

@@ -1,7 +1,7 @@
 //! The batch commands over MPI (`cargo test --features mpi`; needs `mpirun`).
 //!
-//! `mpirun --oversubscribe -n 3 agglo optimize|scan|study accuracy` must write the
-//! same bytes as one process; a killed job must leave a checkpoint that `--resume`
+//! `mpirun --oversubscribe -n 3 agglo optimize|scan|study accuracy|study readings`
+//! must write the same bytes as one process (timings aside); a killed job must leave a checkpoint that `--resume`
 //! (with another rank count) finishes to those same bytes; a failing sample must be
 //! reported once, by rank 0, and stop every rank.
 #![cfg(feature = "mpi")]
@@ -128,7 +128,7 @@ fn optimize_on_three_ranks_writes_the_bytes_of_one_process() {
 }
 
 #[test]
-fn scan_and_accuracy_study_on_three_ranks_match_one_process() {
+fn scan_and_studies_on_three_ranks_match_one_process() {
     let tmp = tempfile::tempdir().unwrap();
     let problem = write_problem(tmp.path(), 1, "");
     let scan = |cmd: &mut Command, out: &Path| {
@@ -173,30 +173,52 @@ fn scan_and_accuracy_study_on_three_ranks_match_one_process() {
     let (a, b) = (tmp.path().join("acc1"), tmp.path().join("acc3"));
     check(study(&mut Command::new(agglo()), &a), "study accuracy");
     check(study(&mut mpirun(3), &b), "mpirun study accuracy");
-    let without_times = |dir: &Path| -> Vec<String> {
-        let text = std::fs::read_to_string(dir.join("accuracy.csv")).unwrap();
-        let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
-        let timed: Vec<usize> = header
-            .iter()
-            .enumerate()
-            .filter(|(_, h)| h.starts_with("wall"))
-            .map(|(i, _)| i)
-            .collect();
-        assert!(!timed.is_empty());
-        text.lines()
-            .map(|l| {
-                l.split(',')
-                    .enumerate()
-                    .filter(|(i, _)| !timed.contains(i))
-                    .map(|(_, c)| c)
-                    .collect::<Vec<_>>()
-                    .join(",")
-            })
-            .collect()
-    };
-    let (x, y) = (without_times(&a), without_times(&b));
+    let (x, y) = (
+        without_times(&a, "accuracy.csv"),
+        without_times(&b, "accuracy.csv"),
+    );
     assert!(x.len() > 5, "study too short: {x:?}");
     assert_eq!(x, y, "accuracy.csv (timings aside): 1 process vs 3 ranks");
+
+    // The readings study: every run, timings aside.
+    let readings = |cmd: &mut Command, out: &Path| {
+        cmd.args(["study", "readings", "--seeds", "3", "--out"])
+            .arg(out)
+            .arg(&two_body)
+            .output()
+            .unwrap()
+    };
+    let (a, b) = (tmp.path().join("read1"), tmp.path().join("read3"));
+    check(readings(&mut Command::new(agglo()), &a), "study readings");
+    check(readings(&mut mpirun(3), &b), "mpirun study readings");
+    for file in ["runs.csv", "readings.csv"] {
+        let (x, y) = (without_times(&a, file), without_times(&b, file));
+        assert!(x.len() > 3, "{file} too short: {x:?}");
+        assert_eq!(x, y, "{file} (timings aside): 1 process vs 3 ranks");
+    }
+}
+
+/// The lines of a CSV without its timing columns (`wall…`), which differ run to run.
+fn without_times(dir: &Path, file: &str) -> Vec<String> {
+    let text = std::fs::read_to_string(dir.join(file)).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let timed: Vec<usize> = header
+        .iter()
+        .enumerate()
+        .filter(|(_, h)| h.starts_with("wall"))
+        .map(|(i, _)| i)
+        .collect();
+    assert!(!timed.is_empty(), "{file} has no timing column");
+    text.lines()
+        .map(|l| {
+            l.split(',')
+                .enumerate()
+                .filter(|(i, _)| !timed.contains(i))
+                .map(|(_, c)| c)
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect()
 }
 
 /// The environment variable MPI gives each rank its number.

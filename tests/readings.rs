@@ -488,6 +488,7 @@ mod study {
 
     use std::path::Path;
 
+    use agglo::farm::Workers;
     use agglo::inverse::InverseProblem;
     use agglo::prelude::*;
     use agglo::study::readings::{
@@ -515,7 +516,13 @@ mod study {
     #[test]
     fn the_baseline_is_agglo_run_bit_for_bit_and_threads_change_nothing() {
         let base = load("paper2004_best.json");
-        let study = run_readings(&base, &options(&["pair_hardness_max"]), |_| {}).unwrap();
+        let study = run_readings(
+            &base,
+            &options(&["pair_hardness_max"]),
+            &Workers::local(2),
+            |_| {},
+        )
+        .unwrap();
         assert_eq!(study.readings[0].key, BASELINE);
         assert_eq!(study.seeds, vec![2004, 2005]);
         for run in study.runs.iter().filter(|r| r.reading == 0) {
@@ -533,13 +540,13 @@ mod study {
             );
         }
         // The same study on one thread: identical runs.
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        let single = pool
-            .install(|| run_readings(&base, &options(&["pair_hardness_max"]), |_| {}))
-            .unwrap();
+        let single = run_readings(
+            &base,
+            &options(&["pair_hardness_max"]),
+            &Workers::local(1),
+            |_| {},
+        )
+        .unwrap();
         for (a, b) in study.runs.iter().zip(&single.runs) {
             let (mut x, mut y) = (a.result.clone().unwrap(), b.result.clone().unwrap());
             (x.wall_seconds, y.wall_seconds) = (0.0, 0.0);
@@ -578,7 +585,7 @@ mod study {
     #[test]
     fn an_unknown_reading_is_refused_with_the_list() {
         let base = load("paper2002_best.json");
-        let err = run_readings(&base, &options(&["a0_p02"]), |_| {})
+        let err = run_readings(&base, &options(&["a0_p02"]), &Workers::local(1), |_| {})
             .unwrap_err()
             .to_string();
         // a0_p02 is a reading of P04's scene only.

@@ -2,8 +2,8 @@
 //!
 //! Rank 0 runs the command as usual and hands out its simulations to every rank.
 //! Every other rank only computes: for `optimize` and `scan` it loads the same
-//! inverse file and runs the samples it is sent; for `study accuracy` the runs
-//! arrive with their scenes. Other commands run on rank 0 alone; the other ranks
+//! inverse file and runs the samples it is sent; for `study accuracy` and
+//! `study readings` the runs arrive with their scenes. Other commands run on rank 0 alone; the other ranks
 //! wait for the end and leave. Only rank 0 prints, so an error is reported once.
 //! Without the feature, or with a single rank, there is no cluster and nothing
 //! here does anything.
@@ -85,6 +85,12 @@ pub fn serve(cluster: Option<&Cluster>, command: &Command) -> Option<i32> {
                 agglo::study::accuracy::measure_task(&t.task)
             })
         }
+        Command::Study(StudyCommand::Readings(args)) => c.serve(
+            threads(args.threads, cluster),
+            &|t: &agglo::farm::Indexed<agglo::study::readings::ReadingTask>| {
+                agglo::study::readings::run_task(&t.task)
+            },
+        ),
         // Nothing to share: wait for rank 0 to finish.
         _ => c.serve(1, &|_: &()| ()),
     };

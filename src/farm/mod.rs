@@ -220,12 +220,12 @@ fn coordinate_local<D: Dispatcher>(
 }
 
 /// The simplest dispatcher: a fixed list of tasks, results kept by index.
-pub struct ListDispatcher<T, O> {
+pub struct ListDispatcher<'a, T, O> {
     tasks: Vec<T>,
     next: usize,
     results: Vec<Option<O>>,
-    /// Called with (index, &output) as each result arrives.
-    on_result: Option<Box<dyn FnMut(usize, &O) + Send>>,
+    /// Called with (index, &output) as each result arrives (on the coordinating thread).
+    on_result: Option<Box<dyn FnMut(usize, &O) + 'a>>,
 }
 
 /// A task of a [`ListDispatcher`]: its index and the task itself.
@@ -235,7 +235,7 @@ pub struct Indexed<T> {
     pub task: T,
 }
 
-impl<T, O> ListDispatcher<T, O> {
+impl<'a, T, O> ListDispatcher<'a, T, O> {
     pub fn new(tasks: Vec<T>) -> Self {
         let results = tasks.iter().map(|_| None).collect();
         Self {
@@ -246,7 +246,7 @@ impl<T, O> ListDispatcher<T, O> {
         }
     }
 
-    pub fn on_result(mut self, f: impl FnMut(usize, &O) + Send + 'static) -> Self {
+    pub fn on_result(mut self, f: impl FnMut(usize, &O) + 'a) -> Self {
         self.on_result = Some(Box::new(f));
         self
     }
@@ -257,7 +257,7 @@ impl<T, O> ListDispatcher<T, O> {
     }
 }
 
-impl<T, O> Dispatcher for ListDispatcher<T, O>
+impl<T, O> Dispatcher for ListDispatcher<'_, T, O>
 where
     T: Clone + Send + Sync + Serialize + DeserializeOwned,
     O: Send + Serialize + DeserializeOwned,
@@ -294,7 +294,21 @@ where
     T: Clone + Send + Sync + Serialize + DeserializeOwned,
     O: Send + Serialize + DeserializeOwned,
 {
-    let mut d = ListDispatcher::new(tasks);
+    map_with_progress(workers, tasks, work, |_, _| {})
+}
+
+/// [`map`], calling `on_result(index, &output)` as each result arrives.
+pub fn map_with_progress<T, O>(
+    workers: &Workers,
+    tasks: Vec<T>,
+    work: &(dyn Fn(&T) -> O + Sync),
+    on_result: impl FnMut(usize, &O),
+) -> Result<Vec<O>, FarmError>
+where
+    T: Clone + Send + Sync + Serialize + DeserializeOwned,
+    O: Send + Serialize + DeserializeOwned,
+{
+    let mut d = ListDispatcher::new(tasks).on_result(on_result);
     workers.run(&mut d, &|t: &Indexed<T>| work(&t.task))?;
     d.into_results()
         .into_iter()

@@ -26,7 +26,6 @@ use std::path::Path;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use rayon::prelude::*;
 use serde_json::{Value, json};
 
 use crate::charts::{FONT, Figure, save_png_and_svg};
@@ -303,6 +302,22 @@ pub struct ReadingsArgs {
     /// List the readings offered for the scenario and exit.
     #[arg(long)]
     pub list: bool,
+    /// Runs at once (0 = one per core; under mpirun, one per rank).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+}
+
+/// One run of the study as a task of the farm: the scene, patched and capped, as JSON
+/// (so that a rank needs neither the catalogue nor the base scenario).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct ReadingTask {
+    pub scenario_json: String,
+}
+
+/// The worker function of the study (on any thread or rank).
+pub fn run_task(task: &ReadingTask) -> Result<RunStats, String> {
+    let scenario = Scenario::from_json(&task.scenario_json).map_err(|e| e.to_string())?;
+    measure(&scenario)
 }
 
 /// `base` with each `PATH=VALUE` applied (VALUE parsed as JSON, else taken as a string);
@@ -335,8 +350,8 @@ pub fn with_settings(base: &Scenario, settings: &[String]) -> anyhow::Result<Sce
     Ok(scenario)
 }
 
-/// `agglo study readings`: run, write, and print the table.
-pub fn run_cli(args: &ReadingsArgs) -> anyhow::Result<()> {
+/// `agglo study readings`: run on `workers`, write, and print the table.
+pub fn run_cli(args: &ReadingsArgs, workers: &crate::farm::Workers) -> anyhow::Result<()> {
     let mut base = Scenario::load(&args.scenario)
         .map_err(|e| anyhow::anyhow!("loading scenario {}: {e}", args.scenario.display()))?;
     if !args.set.is_empty() {
@@ -360,7 +375,7 @@ pub fn run_cli(args: &ReadingsArgs) -> anyhow::Result<()> {
         target_growth: args.target_growth,
         max_steps: args.max_steps,
     };
-    let study = run_readings(&base, &options, |line| eprintln!("{line}"))?;
+    let study = run_readings(&base, &options, workers, |line| eprintln!("{line}"))?;
     write_readings(&args.out, &study)?;
     print!("{}", markdown(&study));
     println!("wrote {}", args.out.join("readings.csv").display());
@@ -400,7 +415,7 @@ impl Default for ReadingsOptions {
 }
 
 /// What one run produced.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RunStats {
     /// Number-average b_f / b0 (docs/model.md §11).
     pub growth_ratio: f64,
@@ -596,10 +611,13 @@ pub fn combinations(all: &[Reading], groups: &[Vec<String>]) -> Vec<Reading> {
 }
 
 /// Run the baseline and every selected reading over the seeds.
+/// The runs are handed out to `workers` (threads, and MPI ranks with `--features mpi`);
+/// the results do not depend on how many.
 pub fn run_readings(
     base: &Scenario,
     options: &ReadingsOptions,
-    log: impl Fn(&str) + Sync,
+    workers: &crate::farm::Workers,
+    log: impl Fn(&str),
 ) -> anyhow::Result<ReadingsStudy> {
     anyhow::ensure!(options.seeds >= 1, "--seeds must be ≥ 1");
     let all = catalogue(base);
@@ -628,10 +646,11 @@ pub fn run_readings(
     let jobs: Vec<(usize, u64)> = (0..readings.len())
         .flat_map(|r| seeds.iter().map(move |&s| (r, s)))
         .collect();
-    let runs: Vec<Run> = jobs
-        .par_iter()
+    // Scenes are built here; a reading whose scene is invalid fails without a run.
+    let scenes: Vec<Result<Scenario, String>> = jobs
+        .iter()
         .map(|&(r, seed)| {
-            let result = scenario_capped(
+            scenario_capped(
                 base,
                 &readings[r],
                 seed,
@@ -639,14 +658,51 @@ pub fn run_readings(
                 options.max_steps,
             )
             .map_err(|e| e.to_string())
-            .and_then(|s| measure(&s));
-            match &result {
-                Ok(m) => log(&format!(
-                    "{} seed {seed}: b_f/b0 = {:.4} ({:.2} s)",
-                    readings[r].key, m.growth_ratio, m.wall_seconds
-                )),
-                Err(e) => log(&format!("{} seed {seed}: failed: {e}", readings[r].key)),
-            }
+        })
+        .collect();
+    let (runnable, tasks): (Vec<usize>, Vec<ReadingTask>) = scenes
+        .iter()
+        .enumerate()
+        .filter_map(|(k, s)| {
+            s.as_ref().ok().map(|s| {
+                (
+                    k,
+                    ReadingTask {
+                        scenario_json: s.to_json(),
+                    },
+                )
+            })
+        })
+        .unzip();
+    let report = |k: usize, result: &Result<RunStats, String>| {
+        let (r, seed) = jobs[k];
+        match result {
+            Ok(m) => log(&format!(
+                "{} seed {seed}: b_f/b0 = {:.4} ({:.2} s)",
+                readings[r].key, m.growth_ratio, m.wall_seconds
+            )),
+            Err(e) => log(&format!("{} seed {seed}: failed: {e}", readings[r].key)),
+        }
+    };
+    let measured = crate::farm::map_with_progress(workers, tasks, &run_task, |i, result| {
+        report(runnable[i], result)
+    })?;
+    let mut measured = runnable.into_iter().zip(measured).peekable();
+    let runs: Vec<Run> = jobs
+        .iter()
+        .zip(scenes)
+        .enumerate()
+        .map(|(k, (&(r, seed), scene))| {
+            let result = match scene {
+                Err(e) => {
+                    report(k, &Err(e.clone()));
+                    Err(e)
+                }
+                Ok(_) => match measured.next_if(|(j, _)| *j == k) {
+                    Some((_, m)) => m,
+                    None => Err("the run returned nothing".into()),
+                },
+            };
             Run {
                 reading: r,
                 seed,
