@@ -236,6 +236,7 @@ pub const CONTACT_TOLERANCE: f64 = 1e-9;
 pub struct PhysicsOptions {
     pub contact_rule: ContactRule,
     pub cooling: CoolingMethod,
+    pub impacts_per_step: crate::scenario::ImpactsPerStep,
 }
 
 /// Simulated time and step bookkeeping.

@@ -415,6 +415,23 @@ pub struct Physics {
     /// `nearest_neighbour` rule (each body may only meet its nearest neighbour).
     #[serde(default)]
     pub contact_rule: ContactRule,
+    /// Reading: how many impacts a body takes in one step of the stepped core —
+    /// `one_per_body` (the engine: its deepest contact; the rest wait a step) or
+    /// `every_contact` (every contact found, in order; the papers do not say).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub impacts_per_step: ImpactsPerStep,
+}
+
+/// How many impacts one body takes in one step (`physics.impacts_per_step`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ImpactsPerStep {
+    /// One impact per body per step, deepest contact first (docs/model.md §4.2).
+    #[default]
+    OnePerBody,
+    /// Every contact found in the step, in the same order, each with the velocities the
+    /// earlier ones left (stepped core only: on the event core contacts are events).
+    EveryContact,
 }
 
 fn yes() -> bool {
@@ -428,6 +445,7 @@ impl Default for Physics {
             fragmentation: true,
             cooling: CoolingMethod::Implicit,
             contact_rule: ContactRule::All,
+            impacts_per_step: ImpactsPerStep::OnePerBody,
         }
     }
 }
@@ -613,6 +631,9 @@ impl Scenario {
         }
         if self.physics.contact_rule != ContactRule::All {
             return Some("physics.contact_rule = \"all\"");
+        }
+        if self.physics.impacts_per_step != ImpactsPerStep::OnePerBody {
+            return Some("physics.impacts_per_step = \"one_per_body\"");
         }
         if matches!(
             self.physics.cooling,

@@ -171,6 +171,7 @@ impl SimBuilder {
         world.insert_resource(PhysicsOptions {
             contact_rule: scenario.physics.contact_rule,
             cooling: scenario.physics.cooling,
+            impacts_per_step: scenario.physics.impacts_per_step,
         });
         world.insert_resource(SimClock {
             end: scenario.time.end,

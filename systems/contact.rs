@@ -22,7 +22,7 @@ use crate::resources::{
     BoxGeometry, CONTACT_TOLERANCE, Contact, ContactList, Counters, PhysicsOptions, SimClock,
     StateChanged, StepControl,
 };
-use crate::scenario::ContactRule;
+use crate::scenario::{ContactRule, ImpactsPerStep};
 
 /// The bodies of this step in stable-id order, plus their near pairs.
 #[derive(Resource, Debug, Default)]
@@ -304,7 +304,9 @@ pub fn detect_contacts(
     for &(gap, _, _, k) in candidates.iter() {
         let p = table.pairs[k as usize];
         let (i, j) = (p.i as usize, p.j as usize);
-        if taken[i] || taken[j] {
+        // One impact per body per step, unless the scene reads the papers as taking
+        // every contact found (then later contacts see the velocities earlier ones left).
+        if (taken[i] || taken[j]) && options.impacts_per_step == ImpactsPerStep::OnePerBody {
             counters.deferred_contacts += 1;
             continue;
         }

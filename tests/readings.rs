@@ -759,3 +759,114 @@ mod command_line {
         );
     }
 }
+
+/// `physics.impacts_per_step`: one impact per body per step (the engine) or every
+/// contact found in the step (a reading of the papers, which do not say).
+mod impacts_per_step {
+    use super::*;
+
+    /// A at −x moving +v, B at rest in the middle, C at +x moving −v, radii 1 mm and
+    /// gaps g = 1e-7 m. With Δt = 2g/v the first step ends with both pairs overlapping
+    /// by g, so the second step finds both contacts (fixed steps: stepped core).
+    fn three_in_a_line(v: f64, every: bool) -> Scenario {
+        let g = 1e-7;
+        let x = 0.002 + g;
+        let dt = 2.0 * g / v;
+        scenario(json!({
+            "cloud": {
+                "count": 3,
+                "bodies": [
+                    { "position": [-x, 0, 0], "velocity": [v, 0, 0] },
+                    { "position": [0, 0, 0], "velocity": [0, 0, 0] },
+                    { "position": [x, 0, 0], "velocity": [-v, 0, 0] }
+                ]
+            },
+            "physics": {
+                "impacts_per_step": if every { "every_contact" } else { "one_per_body" },
+                "fragmentation": false
+            },
+            "time": { "end": 2.0 * dt, "stepping": { "fixed": { "dt": dt } } }
+        }))
+    }
+
+    fn momentum(sim: &Simulation) -> DVec3 {
+        sim.bodies().iter().map(|b| b.mass * b.velocity).sum()
+    }
+
+    #[test]
+    fn every_contact_resolves_both_contacts_of_the_middle_body_in_one_step() {
+        for (every, impacts, deferred) in [(false, 1, 1), (true, 2, 0)] {
+            let s = three_in_a_line(50.0, every);
+            assert!(!s.uses_event_core());
+            let mut sim = Simulation::new(&s).unwrap();
+            let p0 = momentum(&sim);
+            sim.run().unwrap();
+            let c = sim.counters();
+            assert_eq!(
+                (c.impacts, c.deferred_contacts),
+                (impacts, deferred),
+                "every_contact = {every}"
+            );
+            // Momentum is conserved whatever the order (zero here, to rounding of 2·m·v).
+            let m = sim.bodies()[0].mass;
+            assert!(
+                (momentum(&sim) - p0).length() <= 1e-12 * m * 50.0,
+                "every = {every}"
+            );
+        }
+    }
+
+    #[test]
+    fn bonds_that_chain_in_one_step_make_one_body() {
+        // Fast enough that every impact bonds (above the critical speed). One impact per
+        // body: A and B merge, C waits; every contact: A–B and B–C bond in the same step
+        // and the chain becomes one body.
+        for (every, bodies_left) in [(false, 2), (true, 1)] {
+            let s = three_in_a_line(50.0, every);
+            let mut sim = Simulation::new(&s).unwrap();
+            let mass: f64 = sim.bodies().iter().map(|b| b.mass).sum();
+            sim.run().unwrap();
+            let c = sim.counters();
+            assert_eq!(c.bonds, if every { 2 } else { 1 }, "every = {every}");
+            let after = sim.bodies();
+            assert_eq!(after.len(), bodies_left, "every = {every}");
+            let total: f64 = after.iter().map(|b| b.mass).sum();
+            assert!((total - mass).abs() <= 1e-14 * mass);
+            assert_eq!(after.iter().map(|b| b.primaries).sum::<f64>(), 3.0);
+            assert!(momentum(&sim).length() <= 1e-12 * mass * 50.0);
+            // The energy ledgers close: in the chain, the relative motion a later impact
+            // gave a bonded pair is heat of the merged body, tallied as dissipation.
+            let summary = sim.summary();
+            assert!(
+                summary.invariant_violations.is_empty(),
+                "every = {every}: {:?}",
+                summary.invariant_violations
+            );
+            if every {
+                // The chain keeps the smallest id of the three (A's) and sits at the centre of mass.
+                assert_eq!(after[0].id, 0);
+                assert!(
+                    after[0].position.length() < 1e-9,
+                    "centre of mass at the origin"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_event_core_refuses_every_contact_by_name() {
+        let mut s = three_in_a_line(1.0, true);
+        s.time.stepping = agglo::scenario::Stepping::Adaptive {
+            step_factor: 1.0,
+            dt_min: 1e-12,
+            dt_max: 1e-3,
+            skin: 0.5,
+        };
+        s.time.core = agglo::scenario::Core::Events;
+        let err = s.validate().unwrap_err().to_string();
+        assert!(
+            err.contains("time.core") && err.contains("impacts_per_step"),
+            "{err}"
+        );
+    }
+}

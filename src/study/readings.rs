@@ -32,7 +32,9 @@ use crate::charts::{FONT, Figure, save_png_and_svg};
 use crate::inverse::problem::p02_end_time;
 use crate::observables::P02_TARGET_RATIO;
 use crate::prelude::*;
-use crate::scenario::{ContactRule, CoolingMethod, DurationLaw, SolverKind, Stepping};
+use crate::scenario::{
+    ContactRule, CoolingMethod, DurationLaw, ImpactsPerStep, SolverKind, Stepping,
+};
 
 use super::{mean_std, num, write_csv};
 
@@ -171,6 +173,14 @@ pub fn catalogue(base: &Scenario) -> Vec<Reading> {
             "a pair meets only if each is the other's nearest neighbour (stepped core)",
             "P04 (6.14) staggering rule",
             json!({ "physics": { "contact_rule": "nearest_neighbour" } }),
+        ));
+    }
+    if base.physics.impacts_per_step == ImpactsPerStep::OnePerBody {
+        out.push(Reading::new(
+            "every_contact",
+            "every contact found in a step is resolved instead of one per body (stepped core)",
+            "P04 §6(b), P02 (20): several contacts of one particle not addressed",
+            json!({ "physics": { "impacts_per_step": "every_contact" } }),
         ));
     }
     let cools = base.material.epsilon > 0.0 || base.material.hc > 0.0;
