@@ -419,25 +419,34 @@ impl EventCore {
         best.map(|(_, _, e)| e)
     }
 
-    /// The periodic image of `b`'s centre, relative to `a`'s, that is closest to touching
-    /// at positions `ra`, `rb`: r_b − r_a for that image [m].
-    pub fn contact_separation(&self, ra: DVec3, rb: DVec3, reach: f64) -> DVec3 {
+    /// The periodic image of `b`'s centre, relative to `a`'s, of the contact due now at
+    /// positions `ra`, `rb` with closing velocity `closing` = v_a − v_b: r_b − r_a for that
+    /// image [m]. Small bodies meet through the minimum image. A pair large enough to
+    /// reach more than one image takes the image in which it touches or overlaps *and*
+    /// approaches — the one the calendar predicted (an overlapping, approaching pair is
+    /// due at once) — the least deep of them; only when there is none, the image closest
+    /// to touching. Taking the image closest to touching alone could pick a separating
+    /// image of a pair that is due through another: the contact was then declined, filed
+    /// again for the same instant, and the run stalled.
+    pub fn contact_separation(&self, ra: DVec3, rb: DVec3, reach: f64, closing: DVec3) -> DVec3 {
         let d0 = self.min_image(rb - ra);
         if reach <= 0.5 * self.half_width {
             return d0;
         }
         let side = self.side();
-        let mut best = d0;
-        let mut best_gap = (d0.length() - reach).abs();
-        for image in IMAGES {
-            let d = d0 + side * image;
-            let gap = (d.length() - reach).abs();
-            if gap < best_gap {
-                best = d;
-                best_gap = gap;
+        let mut nearest = (d0, (d0.length() - reach).abs());
+        let mut due: Option<(DVec3, f64)> = None;
+        let touch = 1e-9 * reach;
+        for d in std::iter::once(d0).chain(IMAGES.iter().map(|&image| d0 + side * image)) {
+            let gap = d.length() - reach;
+            if gap.abs() < nearest.1 {
+                nearest = (d, gap.abs());
+            }
+            if gap <= touch && closing.dot(d) > 0.0 && due.is_none_or(|(_, g)| gap.abs() < g) {
+                due = Some((d, gap.abs()));
             }
         }
-        best
+        due.map_or(nearest.0, |(d, _)| d)
     }
 
     /// True when the slot holds a body.

@@ -210,7 +210,7 @@ pub fn pop_due_contacts(
             );
         }
         let reach = a.4.0 + b.4.0;
-        let separation = core.contact_separation(a.1.0, b.1.0, reach);
+        let separation = core.contact_separation(a.1.0, b.1.0, reach, a.2.0 - b.2.0);
         let distance = separation.length();
         let normal = separation / distance;
         // Approaching along the line of centres (rounding may say otherwise for a
