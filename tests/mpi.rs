@@ -242,10 +242,11 @@ fn ranks_writing_to(out: &Path) -> Vec<(u32, usize)> {
             continue;
         };
         let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
-        if cmd.starts_with(agglo()) && cmd.contains(&needle) {
-            if let Some(rank) = rank_of(pid) {
-                found.push((pid, rank));
-            }
+        if cmd.starts_with(agglo())
+            && cmd.contains(&needle)
+            && let Some(rank) = rank_of(pid)
+        {
+            found.push((pid, rank));
         }
     }
     found

@@ -219,13 +219,16 @@ fn coordinate_local<D: Dispatcher>(
     }
 }
 
+/// Called with (index, &output) as each result of a list arrives.
+type ResultHook<'a, O> = Box<dyn FnMut(usize, &O) + 'a>;
+
 /// The simplest dispatcher: a fixed list of tasks, results kept by index.
 pub struct ListDispatcher<'a, T, O> {
     tasks: Vec<T>,
     next: usize,
     results: Vec<Option<O>>,
     /// Called with (index, &output) as each result arrives (on the coordinating thread).
-    on_result: Option<Box<dyn FnMut(usize, &O) + 'a>>,
+    on_result: Option<ResultHook<'a, O>>,
 }
 
 /// A task of a [`ListDispatcher`]: its index and the task itself.

@@ -78,6 +78,9 @@ pub struct SampleTime {
     pub used: bool,
 }
 
+/// Called with (job, evaluation) as each ensemble of a batch completes.
+pub type DoneHook<'a> = &'a dyn Fn(usize, &Evaluation);
+
 /// One ensemble of a batch.
 pub struct Job {
     pub scene: SampleScene,
@@ -112,7 +115,7 @@ impl JobState {
 pub struct EnsembleBatch<'a> {
     jobs: Vec<JobState>,
     cancel: Option<&'a AtomicBool>,
-    on_done: Option<&'a dyn Fn(usize, &Evaluation)>,
+    on_done: Option<DoneHook<'a>>,
     failure: Option<InverseError>,
     speculate: bool,
     wasted: u64,
@@ -151,7 +154,7 @@ impl<'a> EnsembleBatch<'a> {
     }
 
     /// Called with (job, evaluation) as each ensemble completes.
-    pub fn on_done(mut self, f: Option<&'a dyn Fn(usize, &Evaluation)>) -> Self {
+    pub fn on_done(mut self, f: Option<DoneHook<'a>>) -> Self {
         self.on_done = f;
         self
     }

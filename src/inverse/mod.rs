@@ -62,6 +62,9 @@ pub enum Event<'a> {
     CheckStarted { strings: usize, samples: u32 },
 }
 
+/// Receives (generation, the cost of every sample the generation computed).
+pub type SampleTimesHook<'a> = &'a dyn Fn(usize, &[batch::SampleTime]);
+
 /// How to run an inverse problem (`Default`: all cores, fresh run, no progress).
 #[derive(Default)]
 pub struct Options<'a> {
@@ -78,7 +81,7 @@ pub struct Options<'a> {
     pub progress: Option<&'a (dyn Fn(Event) + Sync)>,
     /// Receives the cost of every sample computed, generation by generation
     /// (the closing check as generation G).
-    pub sample_times: Option<&'a dyn Fn(usize, &[batch::SampleTime])>,
+    pub sample_times: Option<SampleTimesHook<'a>>,
 }
 
 /// Run (or continue) the GA, writing outputs to `dir` and a checkpoint after every

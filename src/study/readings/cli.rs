@@ -1,0 +1,106 @@
+//! `agglo study readings` on the command line: its arguments, `--set`, and the handler.
+
+use super::*;
+
+/// Arguments of `agglo study readings` (kept here so that `src/cli.rs` only dispatches).
+#[derive(clap::Args, Debug, Clone)]
+pub struct ReadingsArgs {
+    /// Scenario file (JSON).
+    pub scenario: std::path::PathBuf,
+    /// Output directory.
+    #[arg(long)]
+    pub out: std::path::PathBuf,
+    /// Seeds per reading (the scenario's seed and the next ones), ≥ 2 for an error bar.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
+    pub seeds: u32,
+    /// Set T by P02 (13) with this many fixed steps for every run, as the P02 inverse
+    /// problem does (`end_time: {p02: {steps}}` in paper2002_inverse.json: 200).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub p02_steps: Option<u32>,
+    /// Run only these readings (comma-separated keys; the baseline always runs).
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+    /// The published b_f/b0 to compare with (P04 rank 1: 3.23; P02 rank 1: 2).
+    #[arg(long)]
+    pub target_growth: Option<f64>,
+    /// Override time.max_steps of every run (a run that reaches it counts as failed).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub max_steps: Option<u64>,
+    /// Change the scene before the study: PATH=VALUE with a dotted scenario path and a
+    /// JSON value, e.g. `--set box.half_width=1e-4` (repeatable).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    pub set: Vec<String>,
+    /// Run every combination of readings instead: one group per `--combine`, its
+    /// alternatives separated by `|` (a combination takes none or one of each group),
+    /// e.g. `--combine solver_plain|solver_plain_cap_parity --combine v_rel_yz_10`.
+    #[arg(long, value_name = "KEY|KEY…")]
+    pub combine: Vec<String>,
+    /// List the readings offered for the scenario and exit.
+    #[arg(long)]
+    pub list: bool,
+    /// Runs at once (0 = one per core; under mpirun, one per rank).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+}
+
+/// `base` with each `PATH=VALUE` applied (VALUE parsed as JSON, else taken as a string);
+/// the name gains the settings so the outputs say what ran.
+pub fn with_settings(base: &Scenario, settings: &[String]) -> anyhow::Result<Scenario> {
+    let mut value = serde_json::to_value(base)?;
+    for setting in settings {
+        let (path, raw) = setting
+            .split_once('=')
+            .ok_or_else(|| anyhow::anyhow!("--set {setting}: expected PATH=VALUE"))?;
+        let new: Value = serde_json::from_str(raw).unwrap_or_else(|_| Value::from(raw));
+        let mut slot = &mut value;
+        for key in path.split('.') {
+            slot = match slot {
+                // A missing key is added; the scenario's own parsing then names it if unknown.
+                Value::Object(map) => map.entry(key).or_insert(Value::Null),
+                Value::Array(items) => key
+                    .parse::<usize>()
+                    .ok()
+                    .and_then(|k| items.get_mut(k))
+                    .ok_or_else(|| anyhow::anyhow!("--set {setting}: no element `{key}`"))?,
+                _ => anyhow::bail!("--set {setting}: the scenario has no field `{key}` there"),
+            };
+        }
+        *slot = new;
+    }
+    let mut scenario = Scenario::from_value(value)
+        .map_err(|e| anyhow::anyhow!("--set {}: {e}", settings.join(" ")))?;
+    scenario.name = format!("{} ({})", base.name, settings.join(", "));
+    Ok(scenario)
+}
+
+/// `agglo study readings`: run on `workers`, write, and print the table.
+pub fn run_cli(args: &ReadingsArgs, workers: &crate::farm::Workers) -> anyhow::Result<()> {
+    let mut base = Scenario::load(&args.scenario)
+        .map_err(|e| anyhow::anyhow!("loading scenario {}: {e}", args.scenario.display()))?;
+    if !args.set.is_empty() {
+        base = with_settings(&base, &args.set)?;
+    }
+    if args.list {
+        for r in catalogue(&base) {
+            println!("{:<32} {} ({})", r.key, r.what, r.source);
+        }
+        return Ok(());
+    }
+    let options = ReadingsOptions {
+        seeds: args.seeds as usize,
+        p02_steps: args.p02_steps,
+        only: args.only.clone(),
+        combine: args
+            .combine
+            .iter()
+            .map(|g| g.split('|').map(str::to_string).collect())
+            .collect(),
+        target_growth: args.target_growth,
+        max_steps: args.max_steps,
+    };
+    let study = run_readings(&base, &options, workers, |line| eprintln!("{line}"))?;
+    write_readings(&args.out, &study)?;
+    print!("{}", markdown(&study));
+    println!("wrote {}", args.out.join("readings.csv").display());
+    Ok(())
+}
