@@ -442,19 +442,10 @@ pub fn restitution_seed(
     bj: &PairBody,
     normal: DVec3,
 ) -> Option<f64> {
-    let closing = (bi.velocity - bj.velocity).dot(normal);
-    if closing.is_nan() || closing <= 0.0 {
-        return None;
-    }
-    let h = pair_hardness(
-        model.pair_hardness,
-        hardness(model.h0, model.activation_energy, bi.temperature),
-        hardness(model.h0, model.activation_energy, bj.temperature),
-    );
-    if h.is_infinite() {
-        return Some(1.0);
-    }
-    let lambda = closed_form_lambda(model, bi, bj, closing, h);
+    let lambda = match pre_impact_lambda(model, bi, bj, normal)? {
+        PreImpact::Rigid => return Some(1.0),
+        PreImpact::Lambda(lambda) => lambda,
+    };
     let kappa = match model.duration {
         DurationLaw::P04 => 0.0,
         DurationLaw::P02 => 1.0,
@@ -473,6 +464,39 @@ pub fn restitution_seed(
     // The smaller root without cancellation: 2 qc / (−qb + √disc).
     let e = 2.0 * qc / (-qb + disc.sqrt());
     (0.0..=1.0).contains(&e).then_some(e)
+}
+
+/// A pair as the closed forms see it before the impact.
+enum PreImpact {
+    /// Infinitely hard (no softening at this temperature): full rebound, e = 1.
+    Rigid,
+    /// λ of the closed form with the pre-impact pair hardness.
+    Lambda(f64),
+}
+
+/// The closing speed along `normal` and λ with the pre-impact pair hardness, shared by
+/// both closed forms; `None` when the pair does not approach.
+fn pre_impact_lambda(
+    model: &PairModel,
+    bi: &PairBody,
+    bj: &PairBody,
+    normal: DVec3,
+) -> Option<PreImpact> {
+    let closing = (bi.velocity - bj.velocity).dot(normal);
+    if closing.is_nan() || closing <= 0.0 {
+        return None;
+    }
+    let h = pair_hardness(
+        model.pair_hardness,
+        hardness(model.h0, model.activation_energy, bi.temperature),
+        hardness(model.h0, model.activation_energy, bj.temperature),
+    );
+    if h.is_infinite() {
+        return Some(PreImpact::Rigid);
+    }
+    Some(PreImpact::Lambda(closed_form_lambda(
+        model, bi, bj, closing, h,
+    )))
 }
 
 /// λ = m_red w² / (2 β b · 2π b² H) of the closed form (docs/model.md §5.2), with the
@@ -501,19 +525,10 @@ pub fn printed_closed_form(
     bj: &PairBody,
     normal: DVec3,
 ) -> Option<f64> {
-    let closing = (bi.velocity - bj.velocity).dot(normal);
-    if closing.is_nan() || closing <= 0.0 {
-        return None;
-    }
-    let h = pair_hardness(
-        model.pair_hardness,
-        hardness(model.h0, model.activation_energy, bi.temperature),
-        hardness(model.h0, model.activation_energy, bj.temperature),
-    );
-    if h.is_infinite() {
-        return Some(1.0);
-    }
-    let lambda = closed_form_lambda(model, bi, bj, closing, h);
+    let lambda = match pre_impact_lambda(model, bi, bj, normal)? {
+        PreImpact::Rigid => return Some(1.0),
+        PreImpact::Lambda(lambda) => lambda,
+    };
     let (a0, af) = (model.a0, model.af);
     if lambda >= af {
         return Some(0.0);

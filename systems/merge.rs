@@ -116,7 +116,10 @@ pub fn merge_bonded(
         ha.0 = material.hardness(ta.0);
         commands.entity(b).despawn();
         events.despawned.push(id_b.0);
-        absorbed.insert(b, a);
+        if several_impacts {
+            // Only then can a later record of the step name `b` (no allocation otherwise).
+            absorbed.insert(b, a);
+        }
         clock.bodies_reshaped = true;
     }
 }

@@ -4,6 +4,8 @@
 //! checkpoint/resume, the closing check, a short real run re-checked through
 //! `agglo run`, and rejection of bad inverse files.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -284,25 +286,11 @@ fn best_string_rerun_through_agglo_run_reproduces_its_cost() {
         .map(|s| s.as_u64().unwrap())
         .collect();
     assert_eq!(seeds.len() as u64, top["samples"].as_u64().unwrap());
-    let mut sum = 0.0;
-    for (i, seed) in seeds.iter().enumerate() {
-        let summary = tmp.path().join(format!("s{i}.json"));
-        let out = agglo()
-            .arg("run")
-            .arg(out_dir.join("best_scenario.json"))
-            .args(["--seed", &seed.to_string(), "-q", "--summary"])
-            .arg(&summary)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let s: serde_json::Value =
-            serde_json::from_str(&read(tmp.path(), &format!("s{i}.json"))).unwrap();
-        sum += s["growth"]["growth_ratio"].as_f64().unwrap();
-    }
+    let best_scenario = out_dir.join("best_scenario.json");
+    let sum: f64 = seeds
+        .iter()
+        .map(|&seed| common::growth_of_agglo_run(&best_scenario, seed, tmp.path()))
+        .sum();
     let rerun = (sum / seeds.len() as f64 / 2.0 - 1.0).abs();
     // Same seeds, same scenario: the runs are deterministic, so the re-run agrees to
     // rounding (only the averaging order differs) — far inside the ensemble TOL = 1e-3.

@@ -645,23 +645,10 @@ mod command_line {
         let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/paper2004_best.json");
         let dir = tempfile::tempdir().unwrap();
         let seeds = [2004u64, 2005, 2006];
-        let mut direct = Vec::new();
-        for seed in seeds {
-            let summary = dir.path().join(format!("s{seed}.json"));
-            let out = agglo()
-                .args(["run", scene, "-q", "--seed", &seed.to_string(), "--summary"])
-                .arg(&summary)
-                .output()
-                .unwrap();
-            assert!(
-                out.status.success(),
-                "{}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            let v: serde_json::Value =
-                serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
-            direct.push(v["growth"]["growth_ratio"].as_f64().unwrap());
-        }
+        let direct: Vec<f64> = seeds
+            .iter()
+            .map(|&seed| super::common::growth_of_agglo_run(scene.as_ref(), seed, dir.path()))
+            .collect();
         let study_dir = dir.path().join("study");
         let out = agglo()
             .args([

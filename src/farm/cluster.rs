@@ -20,8 +20,6 @@
 
 use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
-use std::sync::Mutex;
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use mpi::Threading;
@@ -31,7 +29,7 @@ use mpi::topology::{Communicator, SimpleCommunicator};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use super::{Dispatcher, FarmError, LocalPool};
+use super::{Dispatcher, FarmError, LocalPool, with_local_pool};
 
 const TAG_TASK: i32 = 1;
 const TAG_RESULT: i32 = 2;
@@ -160,19 +158,7 @@ impl Cluster {
             return Err(FarmError::Mpi("only rank 0 hands out work".into()));
         }
         self.batch.set(self.batch.get() + 1);
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| FarmError::Pool(e.to_string()))?;
-        let (tx, rx) = mpsc::channel();
-        let queue = Mutex::new(Some(rx));
-        pool.in_place_scope(|scope| {
-            let mut local = LocalPool::start(scope, threads, work, &queue, tx);
-            let result = self.coordinate(dispatcher, &local);
-            local.close();
-            *queue.lock().unwrap_or_else(|p| p.into_inner()) = None;
-            result
-        })
+        with_local_pool(threads, work, |local| self.coordinate(dispatcher, local))?
     }
 
     fn coordinate<D: Dispatcher>(
@@ -309,16 +295,6 @@ impl Cluster {
         T: DeserializeOwned + Send,
         O: Serialize + Send,
     {
-        let pool = match rayon::ThreadPoolBuilder::new()
-            .num_threads(threads.max(1))
-            .build()
-        {
-            Ok(p) => p,
-            Err(e) => {
-                eprintln!("rank {}: thread pool: {e}", self.rank());
-                self.world.abort(1)
-            }
-        };
         // Each task is timed on its worker thread: the result carries how long it
         // waited in this rank's queue and how long it computed.
         let timed = |(t, received): &(T, Instant)| {
@@ -327,15 +303,13 @@ impl Cluster {
             let queued = start.duration_since(*received).as_secs_f64();
             (output, queued, start.elapsed().as_secs_f64())
         };
-        let (tx, rx) = mpsc::channel();
-        let queue = Mutex::new(Some(rx));
-        let code = pool.in_place_scope(|scope| {
-            let mut local = LocalPool::start(scope, threads.max(1), &timed, &queue, tx);
-            let code = self.serve_loop(&local);
-            local.close();
-            *queue.lock().unwrap_or_else(|p| p.into_inner()) = None;
-            code
-        });
+        let code = match with_local_pool(threads.max(1), &timed, |local| self.serve_loop(local)) {
+            Ok(code) => code,
+            Err(e) => {
+                eprintln!("rank {}: {e}", self.rank());
+                self.world.abort(1)
+            }
+        };
         self.world
             .process_at_rank(0)
             .send_with_tag(&code.to_le_bytes()[..], TAG_DONE);

@@ -166,27 +166,39 @@ pub fn thread_count(threads: usize) -> usize {
     }
 }
 
-/// Run a whole batch on this process's threads.
-fn run_local<D: Dispatcher>(
-    dispatcher: &mut D,
+/// Run `coordinate` on the calling thread while `threads` workers compute the tasks it
+/// submits with `work`; the workers finish their task in hand and stop when it returns.
+/// Shared by the local farm and by every rank of a cluster.
+pub(crate) fn with_local_pool<T: Send, O: Send, R>(
     threads: usize,
-    work: &(dyn Fn(&D::Task) -> D::Output + Sync),
-) -> Result<(), FarmError> {
-    let threads = thread_count(threads);
+    work: &(dyn Fn(&T) -> O + Sync),
+    coordinate: impl FnOnce(&LocalPool<'_, T, O>) -> R,
+) -> Result<R, FarmError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| FarmError::Pool(e.to_string()))?;
     let (tx, rx) = mpsc::channel();
     let queue = Mutex::new(Some(rx));
-    pool.in_place_scope(|scope| {
+    Ok(pool.in_place_scope(|scope| {
         let mut local = LocalPool::start(scope, threads, work, &queue, tx);
-        let result = coordinate_local(dispatcher, &local);
+        let result = coordinate(&local);
         local.close();
         // Wake the workers blocked on an empty queue.
         *queue.lock().unwrap_or_else(|p| p.into_inner()) = None;
         result
-    })
+    }))
+}
+
+/// Run a whole batch on this process's threads.
+fn run_local<D: Dispatcher>(
+    dispatcher: &mut D,
+    threads: usize,
+    work: &(dyn Fn(&D::Task) -> D::Output + Sync),
+) -> Result<(), FarmError> {
+    with_local_pool(thread_count(threads), work, |local| {
+        coordinate_local(dispatcher, local)
+    })?
 }
 
 fn coordinate_local<D: Dispatcher>(

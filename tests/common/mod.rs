@@ -43,3 +43,23 @@ pub fn pair(x_left: f64, v_left: f64, x_right: f64, v_right: f64) -> Value {
         }
     })
 }
+
+/// b_f/b0 of `agglo run SCENE --seed SEED -q --summary` (the binary, as a user runs
+/// it), with the summary written in `dir`; the run must succeed.
+pub fn growth_of_agglo_run(scene: &std::path::Path, seed: u64, dir: &std::path::Path) -> f64 {
+    let summary = dir.join(format!("summary_{seed}.json"));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_agglo"))
+        .arg("run")
+        .arg(scene)
+        .args(["-q", "--seed", &seed.to_string(), "--summary"])
+        .arg(&summary)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    v["growth"]["growth_ratio"].as_f64().unwrap()
+}
