@@ -31,7 +31,7 @@ pub struct DiagnosticsSettings {
     /// below 1e-9 of the scale. Measured worst errors on P04's best case
     /// (docs/model.md §13): kinetic 5.6e-16, thermal 3.1e-15, total 3.2e-15; on
     /// quick_demo 1.1e-15, 2.5e-15, 2.5e-15. A wrong impulse of 1e-6 on each bounce
-    /// shows as 4.3e-8 in the kinetic ledger (`tests/energy_ledgers.rs`).
+    /// shows as 4.3e-8 in the kinetic ledger (`tests/suite/energy_ledgers.rs`).
     pub tolerance: f64,
 }
 

@@ -2,7 +2,7 @@
 //! papers on two bodies, against a closed form or an exact kinematic prediction, and
 //! the defaults unchanged.
 
-mod common;
+use crate::common;
 
 use agglo::prelude::*;
 use agglo::resources::hardness;

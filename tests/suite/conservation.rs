@@ -1,6 +1,6 @@
 //! Conservation laws (docs/model.md §10, §14) on real multi-particle runs.
 
-mod common;
+use crate::common;
 
 use agglo::prelude::*;
 use common::scenario;

@@ -1,7 +1,7 @@
 //! Properties over random scenes (proptest): whatever the seed, packing and speeds,
 //! an adaptive run with step factor 1 misses no contact and conserves mass and momentum.
 
-mod common;
+use crate::common;
 
 use agglo::prelude::*;
 use common::scenario;

@@ -1,7 +1,7 @@
 //! Contact detection and the step size (docs/model.md §4): no missed collision for c ≤ 1,
 //! tunnelling with coarse fixed steps, and bodies larger than half the box.
 
-mod common;
+use crate::common;
 
 use agglo::prelude::*;
 use common::scenario;

@@ -3,7 +3,7 @@
 //! hierarchical cell grid finds the same contacts, in the same order, at the same
 //! times as predicting every pair through every periodic image.
 
-mod common;
+use crate::common;
 
 use agglo::prelude::*;
 use agglo::resources::ImpactRecords;

@@ -4,7 +4,7 @@
 //! checkpoint/resume, the closing check, a short real run re-checked through
 //! `agglo run`, and rejection of bad inverse files.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

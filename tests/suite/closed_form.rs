@@ -1,6 +1,6 @@
 //! Physics against closed forms (docs/model.md §14), on real runs of the engine.
 
-mod common;
+use crate::common;
 
 use agglo::prelude::*;
 use agglo::systems::cooling::radiative_closed_form;

@@ -267,7 +267,7 @@ fn the_walk_covers_the_repository() {
         "README.md",
         "Cargo.toml",
         "src/lib.rs",
-        "tests/self_contained.rs",
+        "tests/suite/self_contained.rs",
     ] {
         assert!(
             names.contains(expected),

@@ -3,7 +3,7 @@
 //! closed form on both cores, and on the event core the forced bodies are re-predicted
 //! so that no contact is missed.
 
-mod common;
+use crate::common;
 
 use agglo::bevy_ecs::prelude::*;
 use agglo::glam::DVec3;

@@ -1,0 +1,26 @@
+//! The integration tests, one module per theme, linked into one test binary.
+//!
+//! One binary instead of one per file: each integration-test binary links the whole
+//! engine, and linking eighteen of them dominated a fresh `cargo test`. A theme is
+//! still run on its own with `cargo test --test suite THEME::` (e.g. `record::`).
+//! `tests/mpi.rs` stays apart: it is built only with `--features mpi`.
+
+mod common;
+
+mod cli;
+mod closed_form;
+mod conservation;
+mod determinism;
+mod energy_ledgers;
+mod events;
+mod extension;
+mod inverse;
+mod layout;
+mod properties;
+mod readings;
+mod record;
+mod scenarios;
+mod self_contained;
+mod stepping;
+mod study;
+mod unfinishable_runs;
