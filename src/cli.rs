@@ -487,7 +487,7 @@ fn run_study(command: StudyCommand, cluster: Option<&agglo::farm::Cluster>) -> a
             if let Some(line) = ranks::report(cluster) {
                 eprintln!("{line}");
             }
-            accuracy::write_accuracy(&out, &study)?;
+            agglo::study::write::write_accuracy(&out, &study)?;
             println!("wrote {}", out.join("accuracy.csv").display());
         }
         StudyCommand::Stability {
@@ -505,7 +505,7 @@ fn run_study(command: StudyCommand, cluster: Option<&agglo::farm::Cluster>) -> a
                 ..Default::default()
             };
             let study = stability::run_stability(&scene, &options, |line| eprintln!("{line}"))?;
-            stability::write_stability(&out, &study)?;
+            agglo::study::write::write_stability(&out, &study)?;
             println!("wrote {}", out.display());
         }
         StudyCommand::Readings(args) => {

@@ -626,8 +626,8 @@ pub const ACCURACY_HEADER: [&str; 28] = [
     "noise_ks",
 ];
 
-/// Write `accuracy.csv`, `noise.csv` and the charts into `dir`.
-pub fn write_accuracy(dir: &Path, study: &AccuracyStudy) -> anyhow::Result<()> {
+/// Write `accuracy.csv` and `noise.csv` into `dir` (the charts: [`super::write::write_accuracy`]).
+pub fn write_accuracy_tables(dir: &Path, study: &AccuracyStudy) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir)
         .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
     let level = study.noise.level;
@@ -718,6 +718,5 @@ pub fn write_accuracy(dir: &Path, study: &AccuracyStudy) -> anyhow::Result<()> {
         ],
         &noise_rows,
     )?;
-    super::charts::accuracy_charts(dir, study)?;
     Ok(())
 }

@@ -12,6 +12,7 @@
 //!   decisions made the other way), over an ensemble of seeds, against the baseline and
 //!   the published value. Writes `readings.csv`, `runs.csv`, `readings.md` and a chart.
 //! - [`charts`]: the figures, drawn through [`crate::charts::save_png_and_svg`].
+//! - [`write`]: a study's tables and charts, written into its output folder.
 //!
 //! Everything here is deterministic except the measured wall times.
 
@@ -19,6 +20,7 @@ pub mod accuracy;
 pub mod charts;
 pub mod readings;
 pub mod stability;
+pub mod write;
 
 use std::io::Write;
 

@@ -670,8 +670,8 @@ pub fn run_stability(
     })
 }
 
-/// Write the CSVs and charts of `study` into `dir`.
-pub fn write_stability(dir: &Path, study: &StabilityStudy) -> anyhow::Result<()> {
+/// Write the CSVs of `study` into `dir` (with the charts: [`super::write::write_stability`]).
+pub fn write_stability_tables(dir: &Path, study: &StabilityStudy) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir)
         .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
     write_pair_csv(&dir.join("pair_map.csv"), &study.pair_cold)?;
@@ -727,6 +727,5 @@ pub fn write_stability(dir: &Path, study: &StabilityStudy) -> anyhow::Result<()>
         ],
         &rows,
     )?;
-    super::charts::stability_charts(dir, study)?;
     Ok(())
 }

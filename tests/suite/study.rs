@@ -239,7 +239,7 @@ fn stability_study_writes_its_csvs_and_charts() {
     let mut scene = small_scene();
     scene.cloud.count = 30;
     let study = stability::run_stability(&scene, &options, |_| {}).unwrap();
-    stability::write_stability(dir.path(), &study).unwrap();
+    agglo::study::write::write_stability(dir.path(), &study).unwrap();
     for file in [
         "pair_map.csv",
         "pair_map_softening.csv",
