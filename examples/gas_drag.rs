@@ -7,9 +7,9 @@
 //! Run with `cargo run --release --example gas_drag`.
 
 use agglo::bevy_ecs::prelude::*;
+use agglo::bodies::Bodies;
 use agglo::glam::DVec3;
 use agglo::prelude::*;
-use agglo::systems::bodies::Bodies;
 
 /// dv/dt = −(v − u)/τ toward the gas velocity u, integrated exactly over each step.
 #[derive(Resource, Clone, Copy)]

@@ -203,7 +203,7 @@ fn validate(path: &Path) -> anyhow::Result<()> {
         s.time.end,
         s.seed
     );
-    let pipeline = Pipeline::of_scenario(&s).context("building the scene's pipeline")?;
+    let pipeline = agglo::systems::pipeline_of(&s).context("building the scene's pipeline")?;
     print!("{}", pipeline_text(&pipeline));
     Ok(())
 }

@@ -4,11 +4,14 @@
 //! Zohdi (2004, 2002) as specified in `docs/model.md`: a cloud of fine grains in a
 //! periodic box collides, heats, softens, bonds, merges, fragments and cools.
 //!
-//! Particles are `bevy_ecs` entities ([`components`]); scene constants and run state
-//! are resources ([`resources`]); the step is a schedule of ordered system sets
-//! ([`schedule::StepSystems`]) filled by plugins ([`schedule::SimPlugin`]), the
-//! built-in physics living in [`systems`]. A run is described by a JSON
-//! [`scenario::Scenario`]; [`schedule::Simulation`] runs it.
+//! Three layers, each a crate importing only the one below (docs/architecture.md):
+//! the engine (`agglo-engine`: the laws, bodies as `bevy_ecs` entities ([`components`]),
+//! scene constants and run state as resources ([`resources`]), the stages of a step
+//! ([`schedule::StepSystems`]) and the plugin API ([`schedule::SimPlugin`])); the
+//! built-in physics (`agglo-systems`, re-exported as [`systems`]), one plugin per
+//! concern written against the engine's public API; and this package, the drivers
+//! (recording, inverse problem, studies, task farm) and the command line. A run is
+//! described by a JSON [`scenario::Scenario`]; [`schedule::Simulation`] runs it.
 //!
 //! ```no_run
 //! use agglo::prelude::*;
@@ -22,32 +25,26 @@
 //! All quantities are SI and `f64`.
 
 pub mod charts;
-pub mod cloud;
-pub mod components;
-pub mod error;
 pub mod farm;
 pub mod inverse;
-pub mod observables;
 pub mod output;
 pub mod record;
-pub mod resources;
-pub mod scenario;
-pub mod schedule;
 pub mod study;
 
-#[path = "../systems/mod.rs"]
-pub mod systems;
+// The engine's modules, under the paths users and drivers know them by.
+pub use agglo_engine::{
+    bodies, cloud, components, error, laws, observables, resources, scenario, schedule, totals,
+};
+/// The built-in physics plugins (the `agglo-systems` crate).
+pub use agglo_systems as systems;
 
 // Extensions write systems against the same versions the engine uses.
 pub use bevy_ecs;
 pub use glam;
 
-/// The types most users need.
+/// The types most users need: the engine's prelude (bodies, clock, stages, plugin API)
+/// and the built-in physics.
 pub mod prelude {
-    pub use crate::components::*;
-    pub use crate::error::{ScenarioError, SimError};
-    pub use crate::observables::{Growth, RadiusStats, Summary};
-    pub use crate::resources::{Counters, EnergyLedger, MaterialConstants, SimClock};
-    pub use crate::scenario::Scenario;
-    pub use crate::schedule::{SimBuilder, SimPlugin, Simulation, StepSystems};
+    pub use agglo_engine::prelude::*;
+    pub use agglo_systems::{AddDefaultPlugins, DefaultPlugins};
 }

@@ -6,8 +6,8 @@
 
 use bevy_ecs::prelude::*;
 
-use crate::components::{Particle, Position};
-use crate::resources::BoxGeometry;
+use agglo_engine::components::{Particle, Position};
+use agglo_engine::resources::BoxGeometry;
 
 /// The system.
 pub fn wrap_positions(

@@ -17,12 +17,12 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 
 use super::grid::{NearPair, NeighbourGrid};
-use crate::components::{Mass, Particle, ParticleId, Position, Radius, Velocity};
-use crate::resources::{
+use agglo_engine::components::{Mass, Particle, ParticleId, Position, Radius, Velocity};
+use agglo_engine::resources::{
     BoxGeometry, CONTACT_TOLERANCE, Contact, ContactList, Counters, PhysicsOptions, SimClock,
     StateChanged, StepControl,
 };
-use crate::scenario::{ContactRule, ImpactsPerStep};
+use agglo_engine::scenario::{ContactRule, ImpactsPerStep};
 
 /// The bodies of this step in stable-id order, plus their near pairs.
 #[derive(Resource, Debug, Default)]

@@ -1,5 +1,5 @@
 //! Stage 6 — cooling between impacts on the stepped core (docs/model.md §8, P04
-//! stage II (6.19)–(6.21)). The law and its integrators live in `cooling_law.rs`; the
+//! stage II (6.19)–(6.21)). The law and its integrators live in `engine/laws/cooling.rs`; the
 //! event core cools each body over its whole interval with [`CoolingLaw::advance`]
 //! when the body is read (`bodies.rs`).
 //!
@@ -13,41 +13,13 @@
 
 use bevy_ecs::prelude::*;
 
-use crate::components::{Hardness, Mass, Particle, Radius, Temperature};
-use crate::resources::{
-    EnergyLedger, MaterialConstants, PhysicsOptions, STEFAN_BOLTZMANN, SimClock,
-};
-use crate::scenario::CoolingMethod;
+use agglo_engine::components::{Hardness, Mass, Particle, Radius, Temperature};
+use agglo_engine::resources::{EnergyLedger, MaterialConstants, PhysicsOptions, SimClock};
 
-pub use super::cooling_law::{
+pub use agglo_engine::laws::cooling::{
     CoolingLaw, convective_closed_form, radiative_closed_form,
     radiative_closed_form_with_far_field, radiative_time_to,
 };
-
-impl CoolingLaw {
-    /// The law for a sphere of mass `mass` [kg] and radius `radius` [m].
-    pub fn for_body(material: &MaterialConstants, mass: f64, radius: f64) -> Self {
-        let area = 4.0 * std::f64::consts::PI * radius * radius;
-        let mc = mass * material.heat_capacity;
-        Self {
-            k_convection: material.convection * area / mc,
-            k_radiation: STEFAN_BOLTZMANN * material.emissivity * area / mc,
-            theta_gas: material.theta_gas,
-            theta_far: material.theta_far,
-        }
-    }
-
-    /// One step with the chosen method.
-    pub fn step(&self, method: CoolingMethod, theta: f64, dt: f64) -> f64 {
-        match method {
-            CoolingMethod::Off => theta,
-            CoolingMethod::Explicit => self.explicit_step(theta, dt),
-            CoolingMethod::ExplicitClamped => self.explicit_clamped_step(theta, dt),
-            CoolingMethod::Implicit => self.implicit_step(theta, dt),
-            CoolingMethod::Exact => self.advance(theta, dt),
-        }
-    }
-}
 
 /// The system.
 pub fn cool_bodies(

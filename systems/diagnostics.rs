@@ -15,10 +15,13 @@
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 
-use crate::components::{Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity};
-use crate::resources::{
+use agglo_engine::components::{
+    Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
+};
+use agglo_engine::resources::{
     Counters, EnergyLedger, InvariantReport, MaterialConstants, SimClock, StepEvents,
 };
+pub use agglo_engine::totals::{Totals, totals};
 
 /// How often and how strictly to check.
 #[derive(Resource, Debug, Clone, Copy, PartialEq)]
@@ -33,48 +36,6 @@ pub struct DiagnosticsSettings {
     /// quick_demo 1.1e-15, 2.5e-15, 2.5e-15. A wrong impulse of 1e-6 on each bounce
     /// shows as 4.3e-8 in the kinetic ledger (`tests/suite/energy_ledgers.rs`).
     pub tolerance: f64,
-}
-
-/// Totals of the conserved (or tallied) quantities.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Totals {
-    pub mass: f64,
-    pub momentum: DVec3,
-    /// Σ m |v| [kg m/s].
-    pub momentum_scale: f64,
-    pub kinetic: f64,
-    pub thermal: f64,
-}
-
-impl Totals {
-    /// One body's contribution: mass [kg], velocity [m/s], temperature [K], C [J/(kg K)].
-    pub fn of_body(mass: f64, velocity: DVec3, temperature: f64, heat_capacity: f64) -> Self {
-        Self {
-            mass,
-            momentum: mass * velocity,
-            momentum_scale: mass * velocity.length(),
-            kinetic: 0.5 * mass * velocity.length_squared(),
-            thermal: mass * heat_capacity * temperature,
-        }
-    }
-
-    pub fn energy(&self) -> f64 {
-        self.kinetic + self.thermal
-    }
-}
-
-/// Sum the totals over (mass, velocity, temperature) rows.
-pub fn totals(rows: impl Iterator<Item = (f64, DVec3, f64)>, heat_capacity: f64) -> Totals {
-    let mut t = Totals::default();
-    for (m, v, theta) in rows {
-        let body = Totals::of_body(m, v, theta, heat_capacity);
-        t.mass += body.mass;
-        t.momentum += body.momentum;
-        t.momentum_scale += body.momentum_scale;
-        t.kinetic += body.kinetic;
-        t.thermal += body.thermal;
-    }
-    t
 }
 
 const MAX_REPORTED: usize = 20;

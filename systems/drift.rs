@@ -4,8 +4,8 @@
 
 use bevy_ecs::prelude::*;
 
-use crate::components::{Particle, Position, Velocity};
-use crate::resources::SimClock;
+use agglo_engine::components::{Particle, Position, Velocity};
+use agglo_engine::resources::SimClock;
 
 /// The system.
 pub fn drift(clock: Res<SimClock>, mut bodies: Query<(&mut Position, &Velocity), With<Particle>>) {

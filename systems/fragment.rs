@@ -17,10 +17,10 @@
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 
-use crate::components::{
+use agglo_engine::components::{
     BodyState, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
 };
-use crate::resources::{
+use agglo_engine::resources::{
     BoxGeometry, Counters, EnergyLedger, IdAllocator, ImpactRecords, MaterialConstants, SimClock,
     StateChanged, StepEvents,
 };

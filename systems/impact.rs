@@ -16,12 +16,12 @@
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 
-use crate::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
-use crate::resources::{
+use agglo_engine::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
+use agglo_engine::resources::{
     BoxGeometry, ContactList, Counters, EnergyLedger, ImpactRecord, ImpactRecords, ImpactSettings,
     MaterialConstants, SimClock, StateChanged, hardness,
 };
-use crate::scenario::{
+use agglo_engine::scenario::{
     BondTest, DurationLaw, FrictionCap, PairHardness, Separation, SolverKind, WorkHeat,
 };
 

@@ -21,14 +21,14 @@ use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
 
-use crate::components::{
+use agglo_engine::components::{
     Hardness, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
 };
-use crate::resources::{
+use agglo_engine::resources::{
     BoxGeometry, EnergyLedger, ImpactRecords, MaterialConstants, PhysicsOptions, SimClock,
     StepEvents,
 };
-use crate::scenario::ImpactsPerStep;
+use agglo_engine::scenario::ImpactsPerStep;
 
 type MergeQuery<'w, 's> = Query<
     'w,

@@ -19,7 +19,7 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 
 use super::contact::{BodyQuery, NeighbourTable, search_margin};
-use crate::resources::{BoxGeometry, Counters, SimClock, StateChanged, StepControl};
+use agglo_engine::resources::{BoxGeometry, Counters, SimClock, StateChanged, StepControl};
 
 /// Smallest t ≥ 0 with |d + u t| = s, for separation d = r_j − r_i, relative velocity
 /// u = v_j − v_i and contact distance s = b_i + b_j; `None` if the pair never touches.

@@ -21,6 +21,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::observables::Growth;
+use crate::prelude::DefaultPlugins;
 use crate::scenario::Scenario;
 use crate::schedule::Simulation;
 

@@ -28,10 +28,10 @@ use std::path::Path;
 
 use glam::DVec3;
 
+use crate::laws::cooling::{CoolingLaw, radiative_closed_form};
 use crate::prelude::*;
 use crate::resources::STEFAN_BOLTZMANN;
 use crate::scenario::{CoolingMethod, DurationLaw, SolverKind, Stepping};
-use crate::systems::cooling::{CoolingLaw, radiative_closed_form};
 use crate::systems::impact::{
     FixedPoint, PairBody, PairModel, SolveMethod, closed_form_restitution, critical_speed,
     find_fixed_point, trial,

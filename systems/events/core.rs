@@ -13,9 +13,9 @@ use glam::DVec3;
 
 use super::calendar::{Calendar, Event, EventKind, permute_in_place};
 use super::cells::{CellGrid, Partner, round_fast};
-use crate::resources::BoxGeometry;
-use crate::systems::grid::IMAGES;
-use crate::systems::time_step::time_to_contact;
+use crate::grid::IMAGES;
+use crate::time_step::time_to_contact;
+use agglo_engine::resources::BoxGeometry;
 
 const NONE: u32 = u32::MAX;
 
@@ -80,23 +80,7 @@ impl Trajectory {
     }
 }
 
-/// Event counts of the core (cheap, always on).
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct EventStats {
-    /// Cell crossings processed.
-    pub crossings: u64,
-    /// Popped events found stale (a partner changed since the prediction).
-    pub stale: u64,
-    /// Body predictions made.
-    pub predictions: u64,
-    /// Pair contact times evaluated.
-    pub pair_tests: u64,
-    /// Approaching pairs found overlapping beyond rounding (missed contacts).
-    pub deep_overlaps: u64,
-    /// Times the slots were renumbered in Z-order.
-    #[serde(default)]
-    pub renumberings: u64,
-}
+pub use agglo_engine::resources::EventStats;
 
 /// The event core.
 #[derive(Resource, Debug, Clone)]

@@ -15,7 +15,7 @@
 //! `SimBuilder::add_force_systems`): the bodies they change are filed with the rest.
 //!
 //! Drift, periodic wrapping and cooling need no system: they happen when a body is
-//! brought to the current time (`systems/bodies.rs`).
+//! brought to the current time (`engine/bodies.rs`).
 
 pub mod calendar;
 pub mod cells;
@@ -26,15 +26,15 @@ use glam::DVec3;
 
 use self::calendar::EventKind;
 use self::core::{EventCore, Trajectory, morton_key};
-use super::bodies::{Clockwork, bring_to};
-use super::diagnostics::Totals;
-use crate::components::{
+use agglo_engine::bodies::{Clockwork, bring_to};
+use agglo_engine::components::{
     Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
 };
-use crate::resources::{
+use agglo_engine::resources::{
     BoxGeometry, Contact, ContactList, Counters, EnergyLedger, MaterialConstants, PhysicsOptions,
     SimClock, StepControl, StepEvents,
 };
+use agglo_engine::totals::Totals;
 
 /// Events closer than this (relative to t) count as simultaneous.
 const SIMULTANEOUS: f64 = 1e-13;

@@ -10,10 +10,10 @@
 use std::path::Path;
 
 use agglo::bevy_ecs::prelude::*;
+use agglo::bodies::Bodies;
 use agglo::glam::DVec3;
 use agglo::prelude::*;
 use agglo::resources::{ImpactRecords, InvariantReport};
-use agglo::systems::bodies::Bodies;
 use agglo::systems::impact::resolve_impacts;
 
 /// Relative excess of the wrong impulse: each bounced pair leaves with its relative

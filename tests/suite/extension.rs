@@ -6,9 +6,9 @@
 use crate::common;
 
 use agglo::bevy_ecs::prelude::*;
+use agglo::bodies::Bodies;
 use agglo::glam::DVec3;
 use agglo::prelude::*;
-use agglo::systems::bodies::Bodies;
 use common::scenario;
 use serde_json::json;
 

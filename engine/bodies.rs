@@ -22,12 +22,12 @@ use crate::components::{
     BodyState, Hardness, LocalTime, Mass, Particle, ParticleId, Position, Primaries, Radius,
     Temperature, Velocity,
 };
+use crate::laws::cooling::CoolingLaw;
 use crate::resources::{
     BoxGeometry, EnergyLedger, LazyState, MaterialConstants, PhysicsOptions, SimClock, StepEvents,
 };
 use crate::scenario::CoolingMethod;
-use crate::systems::cooling::CoolingLaw;
-use crate::systems::diagnostics::Totals;
+use crate::totals::Totals;
 
 /// What bringing a body forward needs: the box, the material and whether it cools.
 #[derive(Debug, Clone, Copy)]

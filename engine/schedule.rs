@@ -16,16 +16,16 @@ use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleT
 use bevy_ecs::system::ScheduleSystem;
 use serde::{Deserialize, Serialize};
 
+use crate::bodies::{Clockwork, bring_to, state_at};
 use crate::cloud::generate_cloud;
 use crate::components::{
     BodyState, Hardness, LocalTime, Mass, Particle, ParticleId, Position, Primaries, Radius,
     Temperature, Velocity,
 };
 use crate::error::SimError;
-use crate::observables::Summary;
 use crate::resources::*;
 use crate::scenario::Scenario;
-use crate::systems;
+use crate::totals::totals;
 
 /// The schedule that advances the world by one step.
 #[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -113,28 +113,6 @@ pub struct Pipeline {
     pub left_out: Vec<String>,
 }
 
-impl Pipeline {
-    /// The pipeline [`Simulation::new`] would build for `scenario`, without generating
-    /// its cloud: the plugins decide from the scenario, never from the bodies, so a
-    /// one-body copy of the scene gets the same systems at no cost for any N.
-    pub fn of_scenario(scenario: &Scenario) -> Result<Self, SimError> {
-        scenario.validate()?;
-        let sim = Simulation::new(&one_body_copy(scenario))?;
-        Ok(sim.pipeline)
-    }
-}
-
-/// `scenario` with a single body of the same primary radius (the first placed body,
-/// if the scene places its bodies): what it needs to build its pipeline.
-fn one_body_copy(scenario: &Scenario) -> Scenario {
-    let mut one = scenario.clone();
-    one.cloud.radius = Some(scenario.primary_radius());
-    one.cloud.size_ratio = None;
-    one.cloud.count = 1;
-    one.cloud.bodies.truncate(1);
-    one
-}
-
 /// A world and schedule under construction.
 pub struct SimBuilder {
     world: World,
@@ -145,6 +123,7 @@ pub struct SimBuilder {
     plugins: Vec<&'static str>,
     core_reason: String,
     left_out: Vec<String>,
+    core_stats: Option<fn(&World) -> EventStats>,
 }
 
 impl SimBuilder {
@@ -159,7 +138,7 @@ impl SimBuilder {
             half_width: scenario.domain.half_width,
         };
         let next_id = cloud.len() as u64;
-        let initial = systems::diagnostics::totals(
+        let initial = totals(
             cloud.iter().map(|b| (b.mass, b.velocity, b.temperature)),
             material.heat_capacity,
         );
@@ -228,6 +207,7 @@ impl SimBuilder {
             plugins: Vec::new(),
             core_reason: String::new(),
             left_out: Vec::new(),
+            core_stats: None,
         })
     }
 
@@ -255,7 +235,7 @@ impl SimBuilder {
     /// act over the interval just completed, Δt = `SimClock::dt` (a kick at the end of
     /// each interval: between kicks every body moves ballistically, which is what the
     /// event core predicts), and once more when the run ends. They must read and write
-    /// bodies through [`crate::systems::bodies::Bodies`], which brings each body to the
+    /// bodies through [`crate::bodies::Bodies`], which brings each body to the
     /// current time and has the event core re-predict what they change.
     pub fn add_force_systems<M>(
         &mut self,
@@ -310,11 +290,22 @@ impl SimBuilder {
         self
     }
 
-    /// Add the built-in physics (each plugin schedules only what the scene needs).
-    pub fn add_default_plugins(&mut self) -> &mut Self {
-        for plugin in systems::default_plugins() {
+    /// Build several plugins, in order (e.g. the built-in physics,
+    /// `agglo_systems::default_plugins()`).
+    pub fn add_plugins(
+        &mut self,
+        plugins: impl IntoIterator<Item = Box<dyn SimPlugin>>,
+    ) -> &mut Self {
+        for plugin in plugins {
             self.add_plugin(plugin.as_ref());
         }
+        self
+    }
+
+    /// Have the summary carry a core's own counts: `read` takes them from the world
+    /// when a summary is made (the event core reports its [`EventStats`] this way).
+    pub fn report_core_stats(&mut self, read: fn(&World) -> EventStats) -> &mut Self {
+        self.core_stats = Some(read);
         self
     }
 
@@ -366,6 +357,7 @@ impl SimBuilder {
             scenario: self.scenario,
             plugins: self.plugins,
             pipeline,
+            core_stats: self.core_stats,
             wall_seconds: 0.0,
         })
     }
@@ -399,18 +391,14 @@ pub struct Simulation {
     scenario: Scenario,
     plugins: Vec<&'static str>,
     pipeline: Pipeline,
+    core_stats: Option<fn(&World) -> EventStats>,
     wall_seconds: f64,
 }
 
 impl Simulation {
-    /// The scenario with the built-in physics.
-    pub fn new(scenario: &Scenario) -> Result<Self, SimError> {
-        let mut builder = SimBuilder::new(scenario)?;
-        builder.add_default_plugins();
-        builder.build()
-    }
-
-    /// Start building with custom plugins (call [`SimBuilder::add_default_plugins`] for the built-ins).
+    /// Start building with custom plugins. The built-in physics is one call away
+    /// (`SimBuilder::add_default_plugins`, from `agglo_systems::DefaultPlugins`), and
+    /// `Simulation::new` builds a scene with it alone.
     pub fn builder(scenario: &Scenario) -> Result<SimBuilder, SimError> {
         SimBuilder::new(scenario)
     }
@@ -451,6 +439,11 @@ impl Simulation {
     }
     pub fn material(&self) -> MaterialConstants {
         *self.world.resource::<MaterialConstants>()
+    }
+    /// The core's own counts, when its plugin reports them
+    /// ([`SimBuilder::report_core_stats`]; the event core does).
+    pub fn core_stats(&self) -> Option<EventStats> {
+        self.core_stats.map(|read| read(&self.world))
     }
     /// Wall-clock seconds spent in [`Simulation::step`] so far.
     pub fn wall_seconds(&self) -> f64 {
@@ -528,15 +521,15 @@ impl Simulation {
             &mut LocalTime,
         ), With<Particle>>();
         for (mut p, v, m, b, mut t, mut h, mut lt) in query.iter_mut(&mut self.world) {
-            lost += systems::bodies::bring_to(
+            lost += bring_to(
                 now, &clockwork, &mut p.0, v.0, m.0, b.0, &mut t.0, &mut h.0, &mut lt.0,
             );
         }
         self.world.resource_mut::<EnergyLedger>().cooling_loss += lost;
     }
 
-    fn clockwork(&self) -> systems::bodies::Clockwork {
-        systems::bodies::Clockwork::new(
+    fn clockwork(&self) -> Clockwork {
+        Clockwork::new(
             self.world.resource::<BoxGeometry>(),
             self.world.resource::<MaterialConstants>(),
             self.world.resource::<PhysicsOptions>(),
@@ -568,7 +561,7 @@ impl Simulation {
             .map(|(id, p, v, m, b, t, h, n, lt)| {
                 let state = BodyState::from((id, p, v, m, b, t, h, n));
                 if lazy {
-                    systems::bodies::state_at(&state, lt.0, now, &clockwork)
+                    state_at(&state, lt.0, now, &clockwork)
                 } else {
                     state
                 }
@@ -583,11 +576,5 @@ impl Simulation {
         self.world
             .try_query_filtered::<(), With<Particle>>()
             .map_or(0, |mut q| q.iter(&self.world).count())
-    }
-
-    /// Observables (docs/model.md §11), counters and invariant errors of the run so far.
-    pub fn summary(&self) -> Summary {
-        let bodies = self.bodies();
-        Summary::new(self, &bodies)
     }
 }

@@ -14,6 +14,7 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use serde::{Deserialize, Serialize};
 
+use crate::laws::cooling::CoolingLaw;
 use crate::scenario::{
     BondTest, ContactRule, CoolingMethod, DurationLaw, FrictionCap, PairHardness, Scenario,
     Separation, SolverKind, Stepping, WorkHeat,
@@ -92,6 +93,32 @@ impl MaterialConstants {
     /// True when cooling would change anything (ε > 0 or hc > 0).
     pub fn cools(&self) -> bool {
         self.emissivity > 0.0 || self.convection > 0.0
+    }
+}
+
+/// The cooling law of a body of the scene's material (docs/model.md §8).
+impl CoolingLaw {
+    /// The law for a sphere of mass `mass` [kg] and radius `radius` [m].
+    pub fn for_body(material: &MaterialConstants, mass: f64, radius: f64) -> Self {
+        let area = 4.0 * std::f64::consts::PI * radius * radius;
+        let mc = mass * material.heat_capacity;
+        Self {
+            k_convection: material.convection * area / mc,
+            k_radiation: STEFAN_BOLTZMANN * material.emissivity * area / mc,
+            theta_gas: material.theta_gas,
+            theta_far: material.theta_far,
+        }
+    }
+
+    /// One step with the chosen method.
+    pub fn step(&self, method: CoolingMethod, theta: f64, dt: f64) -> f64 {
+        match method {
+            CoolingMethod::Off => theta,
+            CoolingMethod::Explicit => self.explicit_step(theta, dt),
+            CoolingMethod::ExplicitClamped => self.explicit_clamped_step(theta, dt),
+            CoolingMethod::Implicit => self.implicit_step(theta, dt),
+            CoolingMethod::Exact => self.advance(theta, dt),
+        }
     }
 }
 
@@ -288,6 +315,24 @@ pub struct Counters {
     pub invariant_violations: u64,
 }
 
+/// Event counts of the core (cheap, always on).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct EventStats {
+    /// Cell crossings processed.
+    pub crossings: u64,
+    /// Popped events found stale (a partner changed since the prediction).
+    pub stale: u64,
+    /// Body predictions made.
+    pub predictions: u64,
+    /// Pair contact times evaluated.
+    pub pair_tests: u64,
+    /// Approaching pairs found overlapping beyond rounding (missed contacts).
+    pub deep_overlaps: u64,
+    /// Times the slots were renumbered in Z-order.
+    #[serde(default)]
+    pub renumberings: u64,
+}
+
 /// Energy bookkeeping (docs/model.md §10): E = kinetic + Σ m C θ changes only by these,
 /// and each of its two parts only by its own terms: Σ ½ m v² by the impact dissipation
 /// and the force work, Σ m C θ by the dissipation, reaction heat, fracture energy,
@@ -303,7 +348,7 @@ pub struct EnergyLedger {
     /// Kinetic energy dissipated in impacts (turned into heat) [J].
     pub impact_dissipation: f64,
     /// Work of external forces [J]: the kinetic energy extensions changed through
-    /// [`crate::systems::bodies::Bodies`], Σ (½ m |v_after|² − ½ m |v_before|²) over
+    /// [`crate::bodies::Bodies`], Σ (½ m |v_after|² − ½ m |v_before|²) over
     /// every body they changed.
     #[serde(default)]
     pub force_work: f64,
@@ -311,7 +356,7 @@ pub struct EnergyLedger {
     /// forces moved in either direction, part of the kinetic ledger's scale (docs/model.md §10).
     #[serde(default)]
     pub force_work_turnover: f64,
-    /// Heat added by extensions through [`crate::systems::bodies::Bodies`],
+    /// Heat added by extensions through [`crate::bodies::Bodies`],
     /// Σ m C (θ_after − θ_before) over every body they changed [J] (negative if they cool).
     #[serde(default)]
     pub external_heat: f64,
@@ -395,7 +440,7 @@ pub struct ImpactRecords {
 pub struct StepEvents {
     /// Bodies changed this step, each with its contribution to the totals just before
     /// its first change (a body may appear more than once; the first entry counts).
-    pub touched: Vec<(Entity, crate::systems::diagnostics::Totals)>,
+    pub touched: Vec<(Entity, crate::totals::Totals)>,
     /// Bodies created (fragments).
     pub spawned: Vec<Entity>,
     /// Stable ids of bodies removed (merged away, fragmented).
@@ -410,7 +455,7 @@ pub struct StepEvents {
 
 impl StepEvents {
     /// Record that `entity` is about to change; `before` is its contribution now.
-    pub fn touch(&mut self, entity: Entity, before: crate::systems::diagnostics::Totals) {
+    pub fn touch(&mut self, entity: Entity, before: crate::totals::Totals) {
         self.touched.push((entity, before));
     }
 

@@ -8,7 +8,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::components::BodyState;
-use crate::resources::{Counters, EnergyLedger};
+use crate::resources::{Counters, EnergyLedger, EventStats};
 use crate::schedule::{Pipeline, Simulation};
 
 /// Target ratio r_t of P02's cost (b_f = 2 b0).
@@ -134,7 +134,15 @@ pub struct Summary {
     pub wall_seconds: f64,
     /// The event core's own counts (absent on the stepped core).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub events: Option<crate::systems::events::core::EventStats>,
+    pub events: Option<EventStats>,
+}
+
+impl Simulation {
+    /// Observables (docs/model.md §11), counters and invariant errors of the run so far.
+    pub fn summary(&self) -> Summary {
+        let bodies = self.bodies();
+        Summary::new(self, &bodies)
+    }
 }
 
 impl Summary {
@@ -176,10 +184,7 @@ impl Summary {
             plugins: sim.plugins().iter().map(|s| s.to_string()).collect(),
             pipeline: sim.pipeline().clone(),
             wall_seconds: sim.wall_seconds(),
-            events: sim
-                .world()
-                .get_resource::<crate::systems::events::core::EventCore>()
-                .map(|core| core.stats),
+            events: sim.core_stats(),
         }
     }
 }

@@ -51,7 +51,7 @@ pub struct Primaries(pub f64);
 /// The time t_ref [s] at which this body's [`Position`], [`Temperature`] and
 /// [`Hardness`] hold (docs/model.md §4, lazy state). The event core brings a body to
 /// the current time only when something reads it; read bodies through
-/// `systems::bodies::Bodies` (or `Simulation::bodies`), which does that for you.
+/// `crate::bodies::Bodies` (or `Simulation::bodies`), which does that for you.
 /// The stepped core keeps every body current and does not use it.
 #[derive(Component, Debug, Clone, Copy, PartialEq, Default)]
 pub struct LocalTime(pub f64);

@@ -1,18 +1,20 @@
+//! # agglo-systems
+//!
 //! The built-in physics, one module per concern, each registered through the same
-//! public [`SimPlugin`] API that extensions use (see `examples/`).
+//! public [`SimPlugin`] API that extensions use (see `examples/`): this crate depends
+//! on `agglo-engine` alone, so nothing a built-in does is out of an extension's reach.
 //!
 //! Each plugin looks at the scenario and adds its systems only if the scene needs
 //! them (docs/model.md §3, last line): no cooling system when ε = hc = 0 or cooling is
 //! `off`, no fragmentation when γ is ∞, no diagnostics when switched off. The plugin
 //! that leaves a system out says why ([`SimBuilder::leave_out`]), so `agglo validate`,
-//! the summary and the recording can show it.
-//! Only `src/schedule.rs` imports from here; the order lives there.
+//! the summary and the recording can show it. The stage order lives in the engine
+//! ([`StepSystems`]); [`default_plugins`] lists the built-ins and [`DefaultPlugins`]
+//! adds them to a simulation.
 
-pub mod bodies;
 pub mod boundary;
 pub mod contact;
 pub mod cooling;
-pub mod cooling_law;
 pub mod diagnostics;
 pub mod drift;
 pub mod events;
@@ -24,11 +26,12 @@ pub mod time_step;
 
 use bevy_ecs::prelude::*;
 
-use crate::components::{Mass, Particle, Temperature, Velocity};
-use crate::error::ScenarioError;
-use crate::resources::MaterialConstants;
-use crate::scenario::{CoolingMethod, Core, Scenario};
-use crate::schedule::{SimBuilder, SimPlugin, StepSystems};
+use agglo_engine::components::{Mass, Particle, Temperature, Velocity};
+use agglo_engine::error::ScenarioError;
+use agglo_engine::error::SimError;
+use agglo_engine::resources::MaterialConstants;
+use agglo_engine::scenario::{CoolingMethod, Core, Scenario};
+use agglo_engine::schedule::{Pipeline, SimBuilder, SimPlugin, Simulation, StepSystems};
 
 /// Contact detection (stage 1) and step-size selection (stage 5): the event core
 /// when the scene allows it (docs/model.md §4), the stepped core otherwise.
@@ -46,7 +49,8 @@ impl SimPlugin for ContactPlugin {
             sim.insert_resource(core)
                 .add_systems(StepSystems::Contact, events::pop_due_contacts)
                 .add_systems(StepSystems::TimeStep, events::schedule_next_step)
-                .add_systems(StepSystems::Boundary, events::report_overlaps);
+                .add_systems(StepSystems::Boundary, events::report_overlaps)
+                .report_core_stats(|world| world.resource::<events::core::EventCore>().stats);
             return;
         }
         sim.init_resource::<contact::NeighbourTable>()
@@ -225,6 +229,56 @@ pub fn default_plugins() -> Vec<Box<dyn SimPlugin>> {
         Box::new(MotionPlugin),
         Box::new(DiagnosticsPlugin),
     ]
+}
+
+/// The built-in physics for a simulation: `Simulation::new(&scenario)` and
+/// `builder.add_default_plugins()` (bring the trait into scope, e.g. with
+/// `agglo::prelude::*`).
+pub trait DefaultPlugins {
+    /// The scenario with the built-in physics ([`default_plugins`]).
+    fn new(scenario: &Scenario) -> Result<Self, SimError>
+    where
+        Self: Sized;
+}
+
+impl DefaultPlugins for Simulation {
+    fn new(scenario: &Scenario) -> Result<Self, SimError> {
+        let mut builder = Simulation::builder(scenario)?;
+        builder.add_plugins(default_plugins());
+        builder.build()
+    }
+}
+
+/// [`SimBuilder::add_default_plugins`]: the built-ins, in pipeline order.
+pub trait AddDefaultPlugins {
+    /// Add the built-in physics (each plugin schedules only what the scene needs).
+    fn add_default_plugins(&mut self) -> &mut Self;
+}
+
+impl AddDefaultPlugins for SimBuilder {
+    fn add_default_plugins(&mut self) -> &mut Self {
+        self.add_plugins(default_plugins())
+    }
+}
+
+/// The pipeline [`Simulation::new`] would build for `scenario`, without generating
+/// its cloud: the plugins decide from the scenario, never from the bodies, so a
+/// one-body copy of the scene gets the same systems at no cost for any N.
+pub fn pipeline_of(scenario: &Scenario) -> Result<Pipeline, SimError> {
+    scenario.validate()?;
+    let sim = <Simulation as DefaultPlugins>::new(&one_body_copy(scenario))?;
+    Ok(sim.pipeline().clone())
+}
+
+/// `scenario` with a single body of the same primary radius (the first placed body,
+/// if the scene places its bodies): what it needs to build its pipeline.
+fn one_body_copy(scenario: &Scenario) -> Scenario {
+    let mut one = scenario.clone();
+    one.cloud.radius = Some(scenario.primary_radius());
+    one.cloud.size_ratio = None;
+    one.cloud.count = 1;
+    one.cloud.bodies.truncate(1);
+    one
 }
 
 /// Totals over the bodies now in the world.

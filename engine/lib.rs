@@ -1,0 +1,48 @@
+//! # agglo-engine
+//!
+//! The engine of agglo (docs/architecture.md): what every physics plugin, built-in or
+//! extension, is written against.
+//!
+//! - [`laws`]: pure numerics (the cooling law and its closed forms);
+//! - [`components`]: a body as a `bevy_ecs` entity (mass, radius, velocity,
+//!   temperature, hardness, stable id);
+//! - [`resources`]: scene constants and run state (material, box, clock, counters,
+//!   ledgers, the data handed from stage to stage);
+//! - [`bodies`]: [`bodies::Bodies`], bodies brought to the current time, the one way
+//!   for a plugin to read or change a body;
+//! - [`schedule`]: the stages of a step ([`schedule::StepSystems`], written once), the
+//!   plugin trait ([`schedule::SimPlugin`]), the builder and the [`schedule::Simulation`]
+//!   that steps the world;
+//! - [`scenario`], [`cloud`], [`error`]: the run's description, its initial cloud, and
+//!   the typed errors;
+//! - [`observables`], [`totals`]: what a run measures (docs/model.md §10, §11).
+//!
+//! Nothing here knows a built-in plugin: `agglo-systems` builds on this crate, and the
+//! `agglo` package (drivers and command line) on both. All quantities are SI and `f64`.
+
+pub mod bodies;
+pub mod cloud;
+pub mod components;
+pub mod error;
+pub mod laws;
+pub mod observables;
+pub mod resources;
+pub mod scenario;
+pub mod schedule;
+pub mod totals;
+
+// Plugins write systems against the same versions the engine uses.
+pub use bevy_ecs;
+pub use glam;
+
+/// What a plugin author needs: the body components, the `Bodies` access, the clock and
+/// run-state resources, the stages and the plugin API.
+pub mod prelude {
+    pub use crate::bodies::Bodies;
+    pub use crate::components::*;
+    pub use crate::error::{ScenarioError, SimError};
+    pub use crate::observables::{Growth, RadiusStats, Summary};
+    pub use crate::resources::{Counters, EnergyLedger, MaterialConstants, SimClock};
+    pub use crate::scenario::Scenario;
+    pub use crate::schedule::{SimBuilder, SimPlugin, Simulation, StepSystems};
+}
