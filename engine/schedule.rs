@@ -179,24 +179,10 @@ impl SimBuilder {
             ambiguity_detection: LogLevel::Error,
             ..Default::default()
         });
-        // The pipeline, in one place.
-        schedule.configure_sets(
-            (
-                StepSystems::First,
-                StepSystems::Forces,
-                StepSystems::Contact,
-                StepSystems::Impact,
-                StepSystems::Merge,
-                StepSystems::Fragment,
-                StepSystems::TimeStep,
-                StepSystems::Cooling,
-                StepSystems::Drift,
-                StepSystems::Boundary,
-                StepSystems::Diagnostics,
-                StepSystems::Last,
-            )
-                .chain(),
-        );
+        // The pipeline, in the one place it is written: each stage after the one before.
+        for pair in StepSystems::ORDER.windows(2) {
+            schedule.configure_sets(pair[1].after(pair[0]));
+        }
         schedule.add_systems(advance_clock.after(StepSystems::Last));
         Ok(Self {
             world,
