@@ -60,45 +60,61 @@ impl Clockwork {
     }
 }
 
+/// One body on the event core as [`bring_to`] sees it: what changes as it is brought
+/// forward (position, temperature, hardness, reference time) and what does not
+/// (velocity, mass, radius) between impacts.
+pub struct LazyBody<'a> {
+    /// Position at `t_ref` [m].
+    pub position: &'a mut DVec3,
+    /// Velocity [m/s].
+    pub velocity: DVec3,
+    /// Mass [kg].
+    pub mass: f64,
+    /// Radius [m].
+    pub radius: f64,
+    /// Temperature at `t_ref` [K].
+    pub temperature: &'a mut f64,
+    /// Hardness at `t_ref` [Pa].
+    pub hardness: &'a mut f64,
+    /// The body's reference time t_ref [s].
+    pub t_ref: &'a mut f64,
+}
+
 /// Bring one body from its reference time to `now` in place; returns the heat it lost
 /// by cooling [J] (for the energy ledger).
-#[allow(clippy::too_many_arguments)]
-pub fn bring_to(
-    now: f64,
-    clockwork: &Clockwork,
-    position: &mut DVec3,
-    velocity: DVec3,
-    mass: f64,
-    radius: f64,
-    temperature: &mut f64,
-    hardness: &mut f64,
-    t_ref: &mut f64,
-) -> f64 {
-    let dt = now - *t_ref;
+pub fn bring_to(now: f64, clockwork: &Clockwork, body: LazyBody) -> f64 {
+    let dt = now - *body.t_ref;
     if dt <= 0.0 {
         return 0.0;
     }
-    *position = clockwork.geometry.wrap(*position + velocity * dt);
-    let before = *temperature;
-    let after = clockwork.cooled(before, mass, radius, dt);
+    *body.position = clockwork.geometry.wrap(*body.position + body.velocity * dt);
+    let before = *body.temperature;
+    let after = clockwork.cooled(before, body.mass, body.radius, dt);
     if after != before {
-        *temperature = after;
-        *hardness = clockwork.material.hardness(after);
+        *body.temperature = after;
+        *body.hardness = clockwork.material.hardness(after);
     }
-    *t_ref = now;
-    mass * clockwork.material.heat_capacity * (before - after)
+    *body.t_ref = now;
+    body.mass * clockwork.material.heat_capacity * (before - after)
 }
 
 /// A body's state at `now` without changing it (for snapshots and summaries).
 pub fn state_at(body: &BodyState, t_ref: f64, now: f64, clockwork: &Clockwork) -> BodyState {
     let mut b = *body;
-    let (mut p, mut t, mut h, mut r) = (b.position, b.temperature, b.hardness, t_ref);
+    let mut t_ref = t_ref;
     bring_to(
-        now, clockwork, &mut p, b.velocity, b.mass, b.radius, &mut t, &mut h, &mut r,
+        now,
+        clockwork,
+        LazyBody {
+            position: &mut b.position,
+            velocity: body.velocity,
+            mass: body.mass,
+            radius: body.radius,
+            temperature: &mut b.temperature,
+            hardness: &mut b.hardness,
+            t_ref: &mut t_ref,
+        },
     );
-    b.position = p;
-    b.temperature = t;
-    b.hardness = h;
     b
 }
 
@@ -253,7 +269,17 @@ fn apply(
     let mut tally = Tally::default();
     if lazy {
         tally.cooling_loss = bring_to(
-            now, clockwork, &mut p.0, v.0, m.0, b.0, &mut t.0, &mut h.0, &mut lt.0,
+            now,
+            clockwork,
+            LazyBody {
+                position: &mut p.0,
+                velocity: v.0,
+                mass: m.0,
+                radius: b.0,
+                temperature: &mut t.0,
+                hardness: &mut h.0,
+                t_ref: &mut lt.0,
+            },
         );
     }
     // Energies before and after, computed as `contribution` computes them, so the

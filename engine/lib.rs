@@ -15,6 +15,7 @@
 //!   that steps the world;
 //! - [`scenario`], [`cloud`], [`error`]: the run's description, its initial cloud, and
 //!   the typed errors;
+//! - [`params`]: system parameters grouping what a stage reads and writes together;
 //! - [`observables`], [`totals`]: what a run measures (docs/model.md §10, §11).
 //!
 //! Nothing here knows a built-in plugin: `agglo-systems` builds on this crate, and the
@@ -26,6 +27,7 @@ pub mod components;
 pub mod error;
 pub mod laws;
 pub mod observables;
+pub mod params;
 pub mod resources;
 pub mod scenario;
 pub mod schedule;
@@ -42,6 +44,7 @@ pub mod prelude {
     pub use crate::components::*;
     pub use crate::error::{ScenarioError, SimError};
     pub use crate::observables::{Growth, RadiusStats, Summary};
+    pub use crate::params::{RunBooks, SceneConstants};
     pub use crate::resources::{Counters, EnergyLedger, MaterialConstants, SimClock};
     pub use crate::scenario::Scenario;
     pub use crate::schedule::{SimBuilder, SimPlugin, Simulation, StepSystems};

@@ -16,7 +16,7 @@ use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleT
 use bevy_ecs::system::ScheduleSystem;
 use serde::{Deserialize, Serialize};
 
-use crate::bodies::{Clockwork, bring_to, state_at};
+use crate::bodies::{Clockwork, LazyBody, bring_to, state_at};
 use crate::cloud::generate_cloud;
 use crate::components::{
     BodyState, Hardness, LocalTime, Mass, Particle, ParticleId, Position, Primaries, Radius,
@@ -508,7 +508,17 @@ impl Simulation {
         ), With<Particle>>();
         for (mut p, v, m, b, mut t, mut h, mut lt) in query.iter_mut(&mut self.world) {
             lost += bring_to(
-                now, &clockwork, &mut p.0, v.0, m.0, b.0, &mut t.0, &mut h.0, &mut lt.0,
+                now,
+                &clockwork,
+                LazyBody {
+                    position: &mut p.0,
+                    velocity: v.0,
+                    mass: m.0,
+                    radius: b.0,
+                    temperature: &mut t.0,
+                    hardness: &mut h.0,
+                    t_ref: &mut lt.0,
+                },
             );
         }
         self.world.resource_mut::<EnergyLedger>().cooling_loss += lost;

@@ -33,7 +33,8 @@ pub mod study;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{
-    bodies, cloud, components, error, laws, observables, resources, scenario, schedule, totals,
+    bodies, cloud, components, error, laws, observables, params, resources, scenario, schedule,
+    totals,
 };
 /// The built-in physics plugins (the `agglo-systems` crate).
 pub use agglo_systems as systems;

@@ -14,14 +14,13 @@
 //! nothing changed), [`Counters`] (deferred contacts, overlap violations).
 
 use bevy_ecs::prelude::*;
+
+use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
 
 use super::grid::{NearPair, NeighbourGrid};
 use agglo_engine::components::{Mass, Particle, ParticleId, Position, Radius, Velocity};
-use agglo_engine::resources::{
-    BoxGeometry, CONTACT_TOLERANCE, Contact, ContactList, Counters, PhysicsOptions, SimClock,
-    StateChanged, StepControl,
-};
+use agglo_engine::resources::{BoxGeometry, CONTACT_TOLERANCE, Contact, ContactList, StepControl};
 use agglo_engine::scenario::{ContactRule, ImpactsPerStep};
 
 /// The bodies of this step in stable-id order, plus their near pairs.
@@ -218,19 +217,24 @@ pub struct ContactScratch {
 }
 
 /// The system.
-#[allow(clippy::too_many_arguments)]
 pub fn detect_contacts(
     bodies: BodyQuery,
-    geometry: Res<BoxGeometry>,
+    scene: SceneConstants,
     control: Res<StepControl>,
-    options: Res<PhysicsOptions>,
-    mut clock: ResMut<SimClock>,
     mut table: ResMut<NeighbourTable>,
     mut scratch: ResMut<ContactScratch>,
     mut contacts: ResMut<ContactList>,
-    mut counters: ResMut<Counters>,
-    mut changed: ResMut<StateChanged>,
+    books: RunBooks,
 ) {
+    let SceneConstants {
+        geometry, options, ..
+    } = scene;
+    let RunBooks {
+        mut clock,
+        mut counters,
+        mut changed,
+        ..
+    } = books;
     changed.0 = false;
     if clock.bodies_reshaped || !table.try_reuse(&bodies, &geometry) {
         let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);

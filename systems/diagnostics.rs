@@ -13,6 +13,7 @@
 //! Reads: every body, [`EnergyLedger`]. Writes: [`InvariantReport`], [`Counters`].
 
 use bevy_ecs::prelude::*;
+use bevy_ecs::system::SystemParam;
 use glam::DVec3;
 
 use agglo_engine::components::{
@@ -65,32 +66,29 @@ impl FromWorld for InitialEnergies {
     }
 }
 
+/// What a check reads (its settings, the material, the clock, the ledger and the
+/// energies at t = 0) and where it records what it finds (the report and the violation
+/// counter): one system parameter for both check systems.
+#[derive(SystemParam)]
+pub struct Checks<'w, 's> {
+    settings: Res<'w, DiagnosticsSettings>,
+    material: Res<'w, MaterialConstants>,
+    clock: Res<'w, SimClock>,
+    ledger: Res<'w, EnergyLedger>,
+    initial: Local<'s, InitialEnergies>,
+    report: ResMut<'w, InvariantReport>,
+    counters: ResMut<'w, Counters>,
+}
+
 /// The system.
-#[allow(clippy::too_many_arguments)]
-pub fn check_invariants(
-    settings: Res<DiagnosticsSettings>,
-    material: Res<MaterialConstants>,
-    clock: Res<SimClock>,
-    ledger: Res<EnergyLedger>,
-    initial: Local<InitialEnergies>,
-    bodies: TotalsQuery,
-    mut report: ResMut<InvariantReport>,
-    mut counters: ResMut<Counters>,
-) {
+pub fn check_invariants(mut checks: Checks, bodies: TotalsQuery) {
+    let clock = *checks.clock;
     // clock.step is the index of the step being finished; check after every `every`-th.
-    if !(clock.step + 1).is_multiple_of(settings.every) && clock.time + clock.dt < clock.end {
+    if !(clock.step + 1).is_multiple_of(checks.settings.every) && clock.time + clock.dt < clock.end
+    {
         return;
     }
-    check_now(
-        &settings,
-        &material,
-        clock.step,
-        &ledger,
-        &initial,
-        &bodies,
-        &mut report,
-        &mut counters,
-    );
+    checks.check_now(&bodies);
 }
 
 /// Relative error of the energy ledger: |E − (E0 + reaction heat − fracture energy −
@@ -235,21 +233,15 @@ type TotalsQuery<'w, 's> = Query<
 
 /// The event core's checks: the totals follow the bodies each step touched; every
 /// `full_every` steps and at the end they are recomputed over all bodies.
-#[allow(clippy::too_many_arguments)]
 pub fn check_step_totals(
-    settings: Res<DiagnosticsSettings>,
-    material: Res<MaterialConstants>,
-    clock: Res<SimClock>,
-    ledger: Res<EnergyLedger>,
-    initial: Local<InitialEnergies>,
+    mut checks: Checks,
     events: Res<StepEvents>,
     bodies: TotalsQuery,
     mut running: ResMut<RunningTotals>,
-    mut report: ResMut<InvariantReport>,
-    mut counters: ResMut<Counters>,
     mut seen: Local<Vec<(Entity, Totals)>>,
 ) {
-    let c = material.heat_capacity;
+    let clock = *checks.clock;
+    let c = checks.material.heat_capacity;
     seen.clear();
     seen.extend_from_slice(&events.touched);
     // The first record of each body is its state before the step changed it.
@@ -277,136 +269,99 @@ pub fn check_step_totals(
     for (_, before) in seen.iter() {
         running.add(before, -1.0);
     }
-    counters.invariant_violations += violations.len() as u64;
-    for v in violations {
-        if report.violations.len() < MAX_REPORTED {
-            report.violations.push(v);
-        }
-    }
+    checks.record(violations);
     let last = clock.time + clock.dt >= clock.end;
     if (clock.step + 1).is_multiple_of(running.full_every) || last {
         // Full recomputation: also catches a change no system reported.
-        check_now(
-            &settings,
-            &material,
-            step,
-            &ledger,
-            &initial,
-            &bodies,
-            &mut report,
-            &mut counters,
-        );
-        let all = totals(
-            bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)),
-            material.heat_capacity,
-        );
+        checks.check_now(&bodies);
+        let all = totals(bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)), c);
         running.reset(&all);
-    } else if (clock.step + 1).is_multiple_of(settings.every) {
+    } else if (clock.step + 1).is_multiple_of(checks.settings.every) {
         let now = running.totals();
-        compare(
-            &settings,
-            step,
-            &now,
-            &ledger,
-            &initial,
-            &mut report,
-            &mut counters,
-        );
+        checks.compare(&now);
     }
 }
 
-/// Compare totals with the reference and the ledgers; record violations.
-fn compare(
-    settings: &DiagnosticsSettings,
-    step: u64,
-    now: &Totals,
-    ledger: &EnergyLedger,
-    initial: &InitialEnergies,
-    report: &mut InvariantReport,
-    counters: &mut Counters,
-) {
-    let mut violations: Vec<String> = Vec::new();
-    let mass_error = (now.mass - report.initial_mass).abs() / report.initial_mass;
-    let p0 = DVec3::from_array(report.initial_momentum);
-    let momentum_error =
-        (now.momentum - p0).length() / report.momentum_scale.max(f64::MIN_POSITIVE);
-    let energy_error = energy_error(now.energy(), report.initial_energy, ledger);
-    let kinetic_error = kinetic_error(now.kinetic, initial.kinetic, ledger);
-    let thermal_error = thermal_error(now.thermal, initial.thermal, ledger);
-    let tol = settings.tolerance;
-    if mass_error.is_nan() || mass_error > tol {
-        violations.push(format!(
-            "step {step}: total mass off by {mass_error:.3e} (relative)"
-        ));
-    }
-    if momentum_error.is_nan() || momentum_error > tol {
-        violations.push(format!(
-            "step {step}: total momentum off by {momentum_error:.3e} (relative to Σ m|v|)"
-        ));
-    }
-    if energy_error.is_nan() || energy_error > tol {
-        violations.push(format!(
-            "step {step}: energy ledger off by {energy_error:.3e} (relative to E0 + energy turned over)"
-        ));
-    }
-    if kinetic_error.is_nan() || kinetic_error > tol {
-        violations.push(format!(
-            "step {step}: kinetic energy ledger off by {kinetic_error:.3e} (relative to \
-             E_kin0 + impact dissipation + Σ|force work|)"
-        ));
-    }
-    if thermal_error.is_nan() || thermal_error > tol {
-        violations.push(format!(
-            "step {step}: thermal energy ledger off by {thermal_error:.3e} (relative to \
-             Σ m C θ at t = 0 + heat in + heat out)"
-        ));
-    }
-    report.max_mass_error = report.max_mass_error.max(mass_error);
-    report.max_momentum_error = report.max_momentum_error.max(momentum_error);
-    report.max_energy_error = report.max_energy_error.max(energy_error);
-    report.max_kinetic_error = report.max_kinetic_error.max(kinetic_error);
-    report.max_thermal_error = report.max_thermal_error.max(thermal_error);
-    counters.invariant_violations += violations.len() as u64;
-    for v in violations {
-        if report.violations.len() < MAX_REPORTED {
-            report.violations.push(v);
+impl Checks<'_, '_> {
+    /// Count `violations` and keep the first few in the report.
+    fn record(&mut self, violations: Vec<String>) {
+        self.counters.invariant_violations += violations.len() as u64;
+        for v in violations {
+            if self.report.violations.len() < MAX_REPORTED {
+                self.report.violations.push(v);
+            }
         }
     }
-}
 
-/// Run every check once and record violations.
-#[allow(clippy::type_complexity, clippy::too_many_arguments)]
-pub fn check_now(
-    settings: &DiagnosticsSettings,
-    material: &MaterialConstants,
-    step: u64,
-    ledger: &EnergyLedger,
-    initial: &InitialEnergies,
-    bodies: &TotalsQuery,
-    report: &mut InvariantReport,
-    counters: &mut Counters,
-) {
-    let mut violations: Vec<String> = Vec::new();
-    for (id, p, v, m, b, t) in bodies.iter() {
-        let finite = p.0.is_finite() && v.0.is_finite() && m.0.is_finite() && b.0.is_finite();
-        if !finite || !t.0.is_finite() || t.0 <= 0.0 || m.0 <= 0.0 {
+    /// Compare totals with the reference and the ledgers; record violations.
+    fn compare(&mut self, now: &Totals) {
+        let step = self.clock.step;
+        let (settings, ledger, initial) = (&*self.settings, &*self.ledger, &*self.initial);
+        let report = &mut *self.report;
+        let mut violations: Vec<String> = Vec::new();
+        let mass_error = (now.mass - report.initial_mass).abs() / report.initial_mass;
+        let p0 = DVec3::from_array(report.initial_momentum);
+        let momentum_error =
+            (now.momentum - p0).length() / report.momentum_scale.max(f64::MIN_POSITIVE);
+        let energy_error = energy_error(now.energy(), report.initial_energy, ledger);
+        let kinetic_error = kinetic_error(now.kinetic, initial.kinetic, ledger);
+        let thermal_error = thermal_error(now.thermal, initial.thermal, ledger);
+        let tol = settings.tolerance;
+        if mass_error.is_nan() || mass_error > tol {
             violations.push(format!(
+                "step {step}: total mass off by {mass_error:.3e} (relative)"
+            ));
+        }
+        if momentum_error.is_nan() || momentum_error > tol {
+            violations.push(format!(
+                "step {step}: total momentum off by {momentum_error:.3e} (relative to Σ m|v|)"
+            ));
+        }
+        if energy_error.is_nan() || energy_error > tol {
+            violations.push(format!(
+            "step {step}: energy ledger off by {energy_error:.3e} (relative to E0 + energy turned over)"
+        ));
+        }
+        if kinetic_error.is_nan() || kinetic_error > tol {
+            violations.push(format!(
+                "step {step}: kinetic energy ledger off by {kinetic_error:.3e} (relative to \
+             E_kin0 + impact dissipation + Σ|force work|)"
+            ));
+        }
+        if thermal_error.is_nan() || thermal_error > tol {
+            violations.push(format!(
+                "step {step}: thermal energy ledger off by {thermal_error:.3e} (relative to \
+             Σ m C θ at t = 0 + heat in + heat out)"
+            ));
+        }
+        report.max_mass_error = report.max_mass_error.max(mass_error);
+        report.max_momentum_error = report.max_momentum_error.max(momentum_error);
+        report.max_energy_error = report.max_energy_error.max(energy_error);
+        report.max_kinetic_error = report.max_kinetic_error.max(kinetic_error);
+        report.max_thermal_error = report.max_thermal_error.max(thermal_error);
+        self.record(violations);
+    }
+
+    /// Run every check once and record violations.
+    pub fn check_now(&mut self, bodies: &TotalsQuery) {
+        let step = self.clock.step;
+        let mut violations: Vec<String> = Vec::new();
+        for (id, p, v, m, b, t) in bodies.iter() {
+            let finite = p.0.is_finite() && v.0.is_finite() && m.0.is_finite() && b.0.is_finite();
+            if !finite || !t.0.is_finite() || t.0 <= 0.0 || m.0 <= 0.0 {
+                violations.push(format!(
                 "step {step}: body {} has invalid state (r = {}, v = {}, m = {:e}, b = {:e}, θ = {:e})",
                 id.0, p.0, v.0, m.0, b.0, t.0
             ));
+            }
         }
+        self.record(violations);
+        let now = totals(
+            bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)),
+            self.material.heat_capacity,
+        );
+        self.compare(&now);
     }
-    counters.invariant_violations += violations.len() as u64;
-    for v in violations {
-        if report.violations.len() < MAX_REPORTED {
-            report.violations.push(v);
-        }
-    }
-    let now = totals(
-        bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)),
-        material.heat_capacity,
-    );
-    compare(settings, step, &now, ledger, initial, report, counters);
 }
 
 #[cfg(test)]

@@ -15,15 +15,14 @@
 //! [`StepEvents`] (pieces spawned, parent removed).
 
 use bevy_ecs::prelude::*;
+
+use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
 
 use agglo_engine::components::{
     BodyState, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
 };
-use agglo_engine::resources::{
-    BoxGeometry, Counters, EnergyLedger, IdAllocator, ImpactRecords, MaterialConstants, SimClock,
-    StateChanged, StepEvents,
-};
+use agglo_engine::resources::{IdAllocator, ImpactRecords};
 
 /// Number of equal pieces k = ⌊(1 + x)³⌋, x = δK / (4π γ b0²) (P04 (5.2)).
 pub fn piece_count(absorbed: f64, radius: f64, gamma: f64) -> u64 {
@@ -86,21 +85,25 @@ type FragmentQuery<'w, 's> = Query<
 >;
 
 /// The system.
-#[allow(clippy::too_many_arguments)]
 pub fn fragment_bodies(
     records: Res<ImpactRecords>,
-    material: Res<MaterialConstants>,
-    geometry: Res<BoxGeometry>,
+    scene: SceneConstants,
     bodies: FragmentQuery,
     mut ids: ResMut<IdAllocator>,
-    mut counters: ResMut<Counters>,
-    mut ledger: ResMut<EnergyLedger>,
-    mut clock: ResMut<SimClock>,
-    mut changed: ResMut<StateChanged>,
-    mut events: ResMut<StepEvents>,
+    books: RunBooks,
     mut commands: Commands,
     mut absorbed: Local<Vec<(u64, Entity, f64)>>,
 ) {
+    let SceneConstants {
+        material, geometry, ..
+    } = scene;
+    let RunBooks {
+        mut clock,
+        mut counters,
+        mut ledger,
+        mut changed,
+        mut events,
+    } = books;
     if records.records.is_empty() {
         return;
     }

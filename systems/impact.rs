@@ -14,12 +14,13 @@
 //! can be tested against the closed form of docs/model.md §14 and benchmarked alone.
 
 use bevy_ecs::prelude::*;
+
+use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
 
 use agglo_engine::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
 use agglo_engine::resources::{
-    BoxGeometry, ContactList, Counters, EnergyLedger, ImpactRecord, ImpactRecords, ImpactSettings,
-    MaterialConstants, SimClock, StateChanged, hardness,
+    ContactList, ImpactRecord, ImpactRecords, ImpactSettings, MaterialConstants, hardness,
 };
 use agglo_engine::scenario::{
     BondTest, DurationLaw, FrictionCap, PairHardness, Separation, SolverKind, WorkHeat,
@@ -699,19 +700,24 @@ type ImpactQuery<'w, 's> = Query<
 >;
 
 /// The system: resolve every contact of [`ContactList`] in order.
-#[allow(clippy::too_many_arguments)]
 pub fn resolve_impacts(
     contacts: Res<ContactList>,
-    material: Res<MaterialConstants>,
+    scene: SceneConstants,
     settings: Res<ImpactSettings>,
-    geometry: Res<BoxGeometry>,
     mut bodies: ImpactQuery,
     mut records: ResMut<ImpactRecords>,
-    mut counters: ResMut<Counters>,
-    mut ledger: ResMut<EnergyLedger>,
-    mut changed: ResMut<StateChanged>,
-    mut clock: ResMut<SimClock>,
+    books: RunBooks,
 ) {
+    let SceneConstants {
+        material, geometry, ..
+    } = scene;
+    let RunBooks {
+        mut clock,
+        mut counters,
+        mut ledger,
+        mut changed,
+        ..
+    } = books;
     records.records.clear();
     if contacts.contacts.is_empty() {
         return;

@@ -21,13 +21,12 @@ use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
 
+use agglo_engine::params::{RunBooks, SceneConstants};
+
 use agglo_engine::components::{
     Hardness, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
 };
-use agglo_engine::resources::{
-    BoxGeometry, EnergyLedger, ImpactRecords, MaterialConstants, PhysicsOptions, SimClock,
-    StepEvents,
-};
+use agglo_engine::resources::ImpactRecords;
 use agglo_engine::scenario::ImpactsPerStep;
 
 type MergeQuery<'w, 's> = Query<
@@ -47,18 +46,24 @@ type MergeQuery<'w, 's> = Query<
 >;
 
 /// The system.
-#[allow(clippy::too_many_arguments)]
 pub fn merge_bonded(
     records: Res<ImpactRecords>,
-    material: Res<MaterialConstants>,
-    geometry: Res<BoxGeometry>,
-    options: Res<PhysicsOptions>,
+    scene: SceneConstants,
     mut bodies: MergeQuery,
-    mut clock: ResMut<SimClock>,
-    mut events: ResMut<StepEvents>,
-    mut ledger: ResMut<EnergyLedger>,
+    books: RunBooks,
     mut commands: Commands,
 ) {
+    let SceneConstants {
+        material,
+        geometry,
+        options,
+    } = scene;
+    let RunBooks {
+        mut clock,
+        mut ledger,
+        mut events,
+        ..
+    } = books;
     let several_impacts = options.impacts_per_step == ImpactsPerStep::EveryContact;
     // Absorbed entity → the entity it merged into (only when bonds chain in one step).
     let mut absorbed: HashMap<Entity, Entity> = HashMap::new();

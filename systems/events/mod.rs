@@ -22,17 +22,19 @@ pub mod cells;
 pub mod core;
 
 use bevy_ecs::prelude::*;
+
+use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
 
 use self::calendar::EventKind;
 use self::core::{EventCore, Trajectory, morton_key};
-use agglo_engine::bodies::{Clockwork, bring_to};
+use agglo_engine::bodies::{Clockwork, LazyBody, bring_to};
 use agglo_engine::components::{
     Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
 };
 use agglo_engine::resources::{
-    BoxGeometry, Contact, ContactList, Counters, EnergyLedger, MaterialConstants, PhysicsOptions,
-    SimClock, StepControl, StepEvents,
+    BoxGeometry, Contact, ContactList, Counters, MaterialConstants, SimClock, StepControl,
+    StepEvents,
 };
 use agglo_engine::totals::Totals;
 
@@ -130,21 +132,27 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
 }
 
 /// Stage `Contact`: this step's contacts from the calendar.
-#[allow(clippy::too_many_arguments)]
 pub fn pop_due_contacts(
     mut core: ResMut<EventCore>,
-    clock: Res<SimClock>,
-    geometry: Res<BoxGeometry>,
-    material: Res<MaterialConstants>,
-    options: Res<PhysicsOptions>,
+    scene: SceneConstants,
     mut bodies: LazyQuery,
     mut contacts: ResMut<ContactList>,
-    mut events: ResMut<StepEvents>,
-    mut counters: ResMut<Counters>,
-    mut ledger: ResMut<EnergyLedger>,
+    books: RunBooks,
     mut candidates: Local<Vec<(u64, u64, u32, u32)>>,
     mut taken: Local<Vec<u32>>,
 ) {
+    let SceneConstants {
+        material,
+        geometry,
+        options,
+    } = scene;
+    let RunBooks {
+        clock,
+        mut counters,
+        mut ledger,
+        mut events,
+        ..
+    } = books;
     contacts.contacts.clear();
     candidates.clear();
     let now = clock.time;
@@ -206,7 +214,17 @@ pub fn pop_due_contacts(
         for body in [&mut a, &mut b] {
             let (_, p, v, m, r, t, h, lt) = body;
             ledger.cooling_loss += bring_to(
-                now, &clockwork, &mut p.0, v.0, m.0, r.0, &mut t.0, &mut h.0, &mut lt.0,
+                now,
+                &clockwork,
+                LazyBody {
+                    position: &mut p.0,
+                    velocity: v.0,
+                    mass: m.0,
+                    radius: r.0,
+                    temperature: &mut t.0,
+                    hardness: &mut h.0,
+                    t_ref: &mut lt.0,
+                },
             );
         }
         let reach = a.4.0 + b.4.0;

@@ -1,0 +1,32 @@
+//! System parameters that group what a stage reads and writes together, so that a
+//! system names the scene and the run's books once instead of resource by resource.
+//! Built-in plugins and extensions use the same ones.
+
+use bevy_ecs::prelude::*;
+use bevy_ecs::system::SystemParam;
+
+use crate::resources::{
+    BoxGeometry, Counters, EnergyLedger, MaterialConstants, PhysicsOptions, SimClock, StateChanged,
+    StepEvents,
+};
+
+/// The scene's constants, read only: the material, the periodic box and the physics
+/// options.
+#[derive(SystemParam)]
+pub struct SceneConstants<'w> {
+    pub material: Res<'w, MaterialConstants>,
+    pub geometry: Res<'w, BoxGeometry>,
+    pub options: Res<'w, PhysicsOptions>,
+}
+
+/// The run's books that a stage changing bodies writes: the clock (and its flags),
+/// the event counters, the energy ledger, whether velocities or the body set changed,
+/// and what happened to which body this step (for the event core and the checks).
+#[derive(SystemParam)]
+pub struct RunBooks<'w> {
+    pub clock: ResMut<'w, SimClock>,
+    pub counters: ResMut<'w, Counters>,
+    pub ledger: ResMut<'w, EnergyLedger>,
+    pub changed: ResMut<'w, StateChanged>,
+    pub events: ResMut<'w, StepEvents>,
+}
