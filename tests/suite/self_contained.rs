@@ -1,7 +1,7 @@
 //! The repository is self-contained: nothing in it points outside it, and the physics
 //! specification it cites is its own `docs/model.md`.
 //!
-//! The tests walk README.md, docs/**/*.md, docs/**/*.json, src/**, systems/**,
+//! The tests walk README.md, docs/**/*.md, docs/**/*.json, src/**, engine/**, systems/**,
 //! tests/**, benches/**, examples/**, scenarios/**, .ci/run and Cargo.toml, skipping
 //! binary files (images, fonts, recordings, anything containing a NUL byte) and every
 //! `target/` directory, and check that:
@@ -90,6 +90,7 @@ fn text_files() -> Vec<TextFile> {
     );
     for dir in [
         "src",
+        "engine",
         "systems",
         "tests",
         "benches",
@@ -267,6 +268,8 @@ fn the_walk_covers_the_repository() {
         "README.md",
         "Cargo.toml",
         "src/lib.rs",
+        "engine/lib.rs",
+        "systems/lib.rs",
         "tests/suite/self_contained.rs",
     ] {
         assert!(
