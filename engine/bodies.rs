@@ -24,9 +24,9 @@ use crate::components::{
 };
 use crate::laws::cooling::CoolingLaw;
 use crate::resources::{
-    BoxGeometry, EnergyLedger, LazyState, MaterialConstants, PhysicsOptions, SimClock, StepEvents,
+    BoxGeometry, EnergyLedger, LazyState, MaterialConstants, SimClock, StepEvents,
 };
-use crate::scenario::CoolingMethod;
+use crate::scene::{CoolingMethod, Physics};
 use crate::totals::Totals;
 
 /// What bringing a body forward needs: the box, the material and whether it cools.
@@ -39,11 +39,7 @@ pub struct Clockwork {
 }
 
 impl Clockwork {
-    pub fn new(
-        geometry: &BoxGeometry,
-        material: &MaterialConstants,
-        options: &PhysicsOptions,
-    ) -> Self {
+    pub fn new(geometry: &BoxGeometry, material: &MaterialConstants, options: &Physics) -> Self {
         Self {
             geometry: *geometry,
             material: *material,
@@ -151,7 +147,7 @@ pub struct Bodies<'w, 's> {
     clock: Res<'w, SimClock>,
     geometry: Res<'w, BoxGeometry>,
     material: Res<'w, MaterialConstants>,
-    options: Res<'w, PhysicsOptions>,
+    options: Res<'w, Physics>,
     lazy: Res<'w, LazyState>,
     ledger: ResMut<'w, EnergyLedger>,
     events: ResMut<'w, StepEvents>,

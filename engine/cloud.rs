@@ -11,33 +11,115 @@ use rand::{Rng, RngExt};
 
 use crate::components::BodyState;
 use crate::error::SimError;
+use crate::resources::BoxGeometry;
 use crate::resources::MaterialConstants;
-use crate::scenario::{Scenario, VelocityDistribution};
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 /// Attempts allowed per particle on average before placement is declared impossible.
 const ATTEMPTS_PER_PARTICLE: u64 = 2_000;
 
+/// The initial cloud of N equal primary spheres (docs/model.md §2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Cloud {
+    /// Number of primary particles N.
+    pub count: usize,
+    /// Primary size: give exactly one of `radius` [m] or `size_ratio`
+    /// s = d / (V/N)^(1/3) (volume fraction (π/6) s³).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    /// Size ratio s = 2b / (V/N)^(1/3), 0 < s < 0.9 (P04's L and P02's s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size_ratio: Option<f64>,
+    /// Mean velocity v̄ [m/s].
+    #[serde(default)]
+    pub v_mean: [f64; 3],
+    /// Relative velocity amplitudes v_rel [m/s] per component.
+    pub v_rel: [f64; 3],
+    /// Distribution of λ_i per component: `symmetric` = U[−1, 1] (P04), `positive` = U[0, 1] (P02).
+    #[serde(default)]
+    pub velocity_distribution: VelocityDistribution,
+    /// Explicit bodies instead of a random cloud (for set-ups such as a head-on pair):
+    /// when given, its length must equal `count`, and `v_mean`/`v_rel` are ignored.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub bodies: Vec<PlacedBody>,
+}
+
+/// One explicitly placed body.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PlacedBody {
+    /// Centre [m], inside [−D, D]³.
+    pub position: [f64; 3],
+    /// Velocity [m/s].
+    pub velocity: [f64; 3],
+    /// Primary grains in the body (mass = primaries · m_primary), ≥ 1.
+    #[serde(default = "crate::scene::one")]
+    pub primaries: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum VelocityDistribution {
+    /// λ ~ U[−1, 1] per component (P04).
+    #[default]
+    Symmetric,
+    /// λ ~ U[0, 1] per component (P02).
+    Positive,
+}
+
+impl Cloud {
+    /// Primary radius b0 [m] in the box `domain`, from `radius` or `size_ratio`.
+    pub fn primary_radius(&self, domain: &BoxGeometry) -> f64 {
+        match (self.radius, self.size_ratio) {
+            (Some(b), _) => b,
+            (None, Some(s)) => 0.5 * s * self.spacing(domain),
+            (None, None) => f64::NAN, // rejected by validation
+        }
+    }
+
+    /// Volume fraction of the initial cloud in the box `domain`.
+    pub fn volume_fraction(&self, domain: &BoxGeometry) -> f64 {
+        let b = self.primary_radius(domain);
+        let side = domain.side();
+        self.count as f64 * 4.0 / 3.0 * std::f64::consts::PI * b.powi(3) / side.powi(3)
+    }
+
+    /// The size ratio s = 2 b / (V/N)^(1/3) of primaries of radius `b` [m].
+    pub fn size_ratio_of_radius(&self, b: f64, domain: &BoxGeometry) -> f64 {
+        2.0 * b / self.spacing(domain)
+    }
+
+    /// Mean spacing (V/N)^(1/3) of N primaries in the box [m].
+    fn spacing(&self, domain: &BoxGeometry) -> f64 {
+        (domain.side().powi(3) / self.count as f64).cbrt()
+    }
+}
+
 /// Generate the initial bodies, ids 0..N.
 pub fn generate_cloud(
-    scenario: &Scenario,
+    cloud: &Cloud,
+    domain: &BoxGeometry,
     material: &MaterialConstants,
     rng: &mut impl Rng,
 ) -> Result<Vec<BodyState>, SimError> {
-    let count = scenario.cloud.count;
+    let count = cloud.count;
     let b = material.primary_radius;
-    if !scenario.cloud.bodies.is_empty() {
-        return placed_bodies(scenario, material);
+    if !cloud.bodies.is_empty() {
+        return placed_bodies(cloud, domain, material);
     }
-    let half = scenario.domain.half_width;
+    let half = domain.half_width;
     let positions =
         place_spheres(count, b, half, rng).map_err(|(placed, attempts)| SimError::Placement {
             placed,
             requested: count,
             radius: b,
-            volume_fraction: scenario.volume_fraction(),
+            volume_fraction: cloud.volume_fraction(domain),
             attempts,
         })?;
-    let c = &scenario.cloud;
+    let c = cloud;
     let lambda = |rng: &mut dyn FnMut() -> f64| DVec3::new(rng(), rng(), rng());
     let theta = material.theta_gas;
     let bodies = positions
@@ -66,15 +148,12 @@ pub fn generate_cloud(
 
 /// The scenario's explicit bodies; fails if two of them overlap.
 fn placed_bodies(
-    scenario: &Scenario,
+    cloud: &Cloud,
+    geometry: &BoxGeometry,
     material: &MaterialConstants,
 ) -> Result<Vec<BodyState>, SimError> {
-    let geometry = crate::resources::BoxGeometry {
-        half_width: scenario.domain.half_width,
-    };
     let theta = material.theta_gas;
-    let bodies: Vec<BodyState> = scenario
-        .cloud
+    let bodies: Vec<BodyState> = cloud
         .bodies
         .iter()
         .enumerate()

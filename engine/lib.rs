@@ -13,8 +13,9 @@
 //! - [`schedule`]: the stages of a step ([`schedule::StepSystems`], written once), the
 //!   plugin trait ([`schedule::SimPlugin`]), the builder and the [`schedule::Simulation`]
 //!   that steps the world;
-//! - [`scenario`], [`cloud`], [`error`]: the run's description, its initial cloud, and
-//!   the typed errors;
+//! - [`scene`], [`cloud`], [`error`]: the [`scene::Scene`] a run is built from and the
+//!   sections of it the engine owns (material, time, physics), the initial cloud and
+//!   its section, and the typed errors;
 //! - [`params`]: system parameters grouping what a stage reads and writes together;
 //! - [`observables`], [`totals`]: what a run measures (docs/model.md §10, §11).
 //!
@@ -29,7 +30,7 @@ pub mod laws;
 pub mod observables;
 pub mod params;
 pub mod resources;
-pub mod scenario;
+pub mod scene;
 pub mod schedule;
 pub mod totals;
 
@@ -46,6 +47,6 @@ pub mod prelude {
     pub use crate::observables::{Growth, RadiusStats, Summary};
     pub use crate::params::{RunBooks, SceneConstants};
     pub use crate::resources::{Counters, EnergyLedger, MaterialConstants, SimClock};
-    pub use crate::scenario::Scenario;
+    pub use crate::scene::Scene;
     pub use crate::schedule::{SimBuilder, SimPlugin, Simulation, StepSystems};
 }

@@ -152,11 +152,11 @@ impl Summary {
         let report = sim.invariants();
         let n = bodies.len().max(1) as f64;
         Self {
-            scenario: sim.scenario().name.clone(),
-            seed: sim.scenario().seed,
+            scenario: sim.info().name.clone(),
+            seed: sim.info().seed,
             time: clock.time,
             steps: clock.step,
-            initial_bodies: sim.scenario().cloud.count,
+            initial_bodies: sim.info().initial_bodies,
             final_bodies: bodies.len(),
             growth: Growth::of(bodies, material.rho, material.primary_radius),
             mean_primaries: bodies.iter().map(|b| b.primaries).sum::<f64>() / n,

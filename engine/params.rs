@@ -6,9 +6,9 @@ use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
 
 use crate::resources::{
-    BoxGeometry, Counters, EnergyLedger, MaterialConstants, PhysicsOptions, SimClock, StateChanged,
-    StepEvents,
+    BoxGeometry, Counters, EnergyLedger, MaterialConstants, SimClock, StateChanged, StepEvents,
 };
+use crate::scene::Physics;
 
 /// The scene's constants, read only: the material, the periodic box and the physics
 /// options.
@@ -16,7 +16,7 @@ use crate::resources::{
 pub struct SceneConstants<'w> {
     pub material: Res<'w, MaterialConstants>,
     pub geometry: Res<'w, BoxGeometry>,
-    pub options: Res<'w, PhysicsOptions>,
+    pub options: Res<'w, Physics>,
 }
 
 /// The run's books that a stage changing bodies writes: the clock (and its flags),

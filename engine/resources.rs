@@ -2,7 +2,8 @@
 //!
 //! - [`MaterialConstants`]: the one material of the scene (docs/model.md §1) and the
 //!   hardness law with its overflow rule;
-//! - [`ImpactSettings`], [`StepControl`], [`BoxGeometry`]: how the step is computed;
+//! - [`StepControl`], [`BoxGeometry`]: how the step is computed (the box is the
+//!   scenario's `box` section itself);
 //! - [`SimClock`], [`Counters`], [`EnergyLedger`], [`InvariantReport`]: run state;
 //! - [`ContactList`], [`ImpactRecords`], [`NeighbourPairs`]: data handed from one
 //!   stage of the step to the next;
@@ -12,13 +13,11 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::laws::cooling::CoolingLaw;
-use crate::scenario::{
-    BondTest, ContactRule, CoolingMethod, DurationLaw, FrictionCap, PairHardness, Scenario,
-    Separation, SolverKind, Stepping, WorkHeat,
-};
+use crate::scene::{Material, Stepping, TimeControl};
 
 /// Universal gas constant R [J/(mol K)].
 pub const GAS_CONSTANT: f64 = 8.314462618;
@@ -59,9 +58,8 @@ pub struct MaterialConstants {
 }
 
 impl MaterialConstants {
-    pub fn from_scenario(s: &Scenario) -> Self {
-        let m = &s.material;
-        let b0 = s.primary_radius();
+    /// The constants of the `material` section `m` for primaries of radius `b0` [m].
+    pub fn from_material(m: &Material, b0: f64) -> Self {
         Self {
             rho: m.rho,
             h0: m.H0,
@@ -109,17 +107,6 @@ impl CoolingLaw {
             theta_far: material.theta_far,
         }
     }
-
-    /// One step with the chosen method.
-    pub fn step(&self, method: CoolingMethod, theta: f64, dt: f64) -> f64 {
-        match method {
-            CoolingMethod::Off => theta,
-            CoolingMethod::Explicit => self.explicit_step(theta, dt),
-            CoolingMethod::ExplicitClamped => self.explicit_clamped_step(theta, dt),
-            CoolingMethod::Implicit => self.implicit_step(theta, dt),
-            CoolingMethod::Exact => self.advance(theta, dt),
-        }
-    }
 }
 
 /// H0 · exp(Q / (R θ)) with the overflow rule of docs/model.md §1.
@@ -135,49 +122,13 @@ pub fn hardness(h0: f64, q: f64, theta: f64) -> f64 {
     }
 }
 
-/// Parameters of the impact/heat solve (docs/model.md §5).
-#[derive(Resource, Debug, Clone, Copy, PartialEq)]
-pub struct ImpactSettings {
-    pub a0: f64,
-    pub af: f64,
-    pub beta: f64,
-    pub duration: DurationLaw,
-    pub friction_scales_with_adhesion: bool,
-    pub tol: f64,
-    pub max_iterations: u32,
-    pub solver: SolverKind,
-    pub pair_hardness: PairHardness,
-    pub friction_cap: FrictionCap,
-    pub bond_test: BondTest,
-    pub separation: Separation,
-    pub work_heat: WorkHeat,
-}
-
-impl ImpactSettings {
-    pub fn from_scenario(s: &Scenario) -> Self {
-        let i = &s.impact;
-        Self {
-            a0: i.a0,
-            af: i.af,
-            beta: i.beta,
-            duration: i.duration,
-            friction_scales_with_adhesion: i.friction_scales_with_adhesion,
-            tol: i.tol,
-            max_iterations: i.max_iterations,
-            solver: i.solver,
-            pair_hardness: i.pair_hardness,
-            friction_cap: i.friction_cap,
-            bond_test: i.bond_test,
-            separation: i.separation,
-            work_heat: i.work_heat,
-        }
-    }
-}
-
 /// The periodic cube [−D, D]³.
-#[derive(Resource, Debug, Clone, Copy, PartialEq)]
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+// The `box` section of a scenario, read by every stage as it is; named `Domain` in the
+// schema and in parse errors.
+#[serde(deny_unknown_fields, rename = "Domain")]
 pub struct BoxGeometry {
-    /// Half-width D [m].
+    /// Half-width D [m] of the periodic cube [−D, D]³.
     pub half_width: f64,
 }
 
@@ -230,8 +181,10 @@ pub enum StepControl {
 }
 
 impl StepControl {
-    pub fn from_scenario(s: &Scenario) -> Self {
-        match s.time.stepping {
+    /// The step control of the `time` section for primaries of radius `b0` [m] (the
+    /// skin is given in units of b0).
+    pub fn from_time(time: &TimeControl, b0: f64) -> Self {
+        match time.stepping {
             Stepping::Adaptive {
                 step_factor,
                 dt_min,
@@ -241,7 +194,7 @@ impl StepControl {
                 step_factor,
                 dt_min,
                 dt_max,
-                skin: skin * s.primary_radius(),
+                skin: skin * b0,
             },
             Stepping::Fixed { dt } => StepControl::Fixed { dt },
         }
@@ -257,14 +210,6 @@ impl StepControl {
 
 /// Relative gap tolerance: g ≤ tol·(b_i + b_j) counts as touching (docs/model.md §4).
 pub const CONTACT_TOLERANCE: f64 = 1e-9;
-
-/// Physics options that systems read (which rule, which integrator).
-#[derive(Resource, Debug, Clone, Copy, PartialEq)]
-pub struct PhysicsOptions {
-    pub contact_rule: ContactRule,
-    pub cooling: CoolingMethod,
-    pub impacts_per_step: crate::scenario::ImpactsPerStep,
-}
 
 /// Simulated time and step bookkeeping.
 #[derive(Resource, Debug, Clone, Copy, PartialEq, Default)]

@@ -24,7 +24,7 @@ use crate::components::{
 };
 use crate::error::SimError;
 use crate::resources::*;
-use crate::scenario::Scenario;
+use crate::scene::{Physics, Scene, TimeControl, uses_event_core};
 use crate::totals::totals;
 
 /// The schedule that advances the world by one step.
@@ -113,13 +113,24 @@ pub struct Pipeline {
     pub left_out: Vec<String>,
 }
 
+/// Who a run is: what its summary and recording are labelled with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunInfo {
+    /// The scene's name.
+    pub name: String,
+    /// The seed of its random generator.
+    pub seed: u64,
+    /// Bodies at t = 0.
+    pub initial_bodies: usize,
+}
+
 /// A world and schedule under construction.
 pub struct SimBuilder {
     world: World,
     schedule: Schedule,
     forces: Option<Schedule>,
     runs_forces: bool,
-    scenario: Scenario,
+    info: RunInfo,
     plugins: Vec<&'static str>,
     core_reason: String,
     left_out: Vec<String>,
@@ -127,15 +138,22 @@ pub struct SimBuilder {
 }
 
 impl SimBuilder {
-    /// A world holding the scenario's cloud and resources, with an empty pipeline.
-    pub fn new(scenario: &Scenario) -> Result<Self, SimError> {
-        scenario.validate()?;
+    /// A world holding the scene's cloud and resources, with an empty pipeline: every
+    /// section of the scene is a resource (the engine's own and, through
+    /// [`Scene::insert_settings`], the others), plus the run state the stages share.
+    pub fn new(scene: &dyn Scene) -> Result<Self, SimError> {
+        scene.validate()?;
         let mut world = World::new();
-        let material = MaterialConstants::from_scenario(scenario);
-        let mut rng = SimRng::seeded(scenario.seed);
-        let cloud = generate_cloud(scenario, &material, &mut rng.0)?;
-        let geometry = BoxGeometry {
-            half_width: scenario.domain.half_width,
+        let b0 = scene.cloud().primary_radius(scene.domain());
+        let material = MaterialConstants::from_material(scene.material(), b0);
+        let mut rng = SimRng::seeded(scene.seed());
+        let cloud = generate_cloud(scene.cloud(), scene.domain(), &material, &mut rng.0)?;
+        let time = scene.time();
+        let physics = scene.physics();
+        let info = RunInfo {
+            name: scene.name().to_string(),
+            seed: scene.seed(),
+            initial_bodies: cloud.len(),
         };
         let next_id = cloud.len() as u64;
         let initial = totals(
@@ -144,16 +162,13 @@ impl SimBuilder {
         );
         world.spawn_batch(cloud.iter().map(|b| b.bundle()));
         world.insert_resource(material);
-        world.insert_resource(geometry);
-        world.insert_resource(ImpactSettings::from_scenario(scenario));
-        world.insert_resource(StepControl::from_scenario(scenario));
-        world.insert_resource(PhysicsOptions {
-            contact_rule: scenario.physics.contact_rule,
-            cooling: scenario.physics.cooling,
-            impacts_per_step: scenario.physics.impacts_per_step,
-        });
+        world.insert_resource(*scene.domain());
+        world.insert_resource(StepControl::from_time(time, b0));
+        world.insert_resource(*physics);
+        world.insert_resource(time.clone());
+        scene.insert_settings(&mut world);
         world.insert_resource(SimClock {
-            end: scenario.time.end,
+            end: time.end,
             ..Default::default()
         });
         world.insert_resource(rng);
@@ -171,7 +186,7 @@ impl SimBuilder {
         world.init_resource::<ImpactRecords>();
         world.init_resource::<StateChanged>();
         world.init_resource::<StepEvents>();
-        world.insert_resource(LazyState(scenario.uses_event_core()));
+        world.insert_resource(LazyState(uses_event_core(time, physics)));
 
         let mut schedule = Schedule::new(SimStep);
         schedule.set_executor(SingleThreadedExecutor::new());
@@ -189,7 +204,7 @@ impl SimBuilder {
             schedule,
             forces: None,
             runs_forces: false,
-            scenario: scenario.clone(),
+            info,
             plugins: Vec::new(),
             core_reason: String::new(),
             left_out: Vec::new(),
@@ -197,9 +212,21 @@ impl SimBuilder {
         })
     }
 
-    /// The scenario being built.
-    pub fn scenario(&self) -> &Scenario {
-        &self.scenario
+    /// A resource of the world being built, e.g. the section of the scene a plugin owns
+    /// (plugins decide from these what the scene needs).
+    pub fn resource<R: Resource>(&self) -> &R {
+        self.world.resource::<R>()
+    }
+
+    /// The run's name, seed and initial body count.
+    pub fn info(&self) -> &RunInfo {
+        &self.info
+    }
+
+    /// True when the scene runs on the event core (docs/model.md §4): bodies then
+    /// hold their state at their own reference times ([`LazyState`]).
+    pub fn uses_event_core(&self) -> bool {
+        self.world.resource::<LazyState>().0
     }
 
     /// The world (for resources an extension needs to insert or read).
@@ -326,7 +353,7 @@ impl SimBuilder {
             self.world.add_schedule(forces);
         }
         let pipeline = Pipeline {
-            core: if self.scenario.uses_event_core() {
+            core: if self.uses_event_core() {
                 "event"
             } else {
                 "stepped"
@@ -340,7 +367,7 @@ impl SimBuilder {
             world: self.world,
             schedule: self.schedule,
             has_forces,
-            scenario: self.scenario,
+            info: self.info,
             plugins: self.plugins,
             pipeline,
             core_stats: self.core_stats,
@@ -374,7 +401,7 @@ pub struct Simulation {
     schedule: Schedule,
     /// True when force systems run (their last interval is applied when the run ends).
     has_forces: bool,
-    scenario: Scenario,
+    info: RunInfo,
     plugins: Vec<&'static str>,
     pipeline: Pipeline,
     core_stats: Option<fn(&World) -> EventStats>,
@@ -385,12 +412,13 @@ impl Simulation {
     /// Start building with custom plugins. The built-in physics is one call away
     /// (`SimBuilder::add_default_plugins`, from `agglo_systems::DefaultPlugins`), and
     /// `Simulation::new` builds a scene with it alone.
-    pub fn builder(scenario: &Scenario) -> Result<SimBuilder, SimError> {
-        SimBuilder::new(scenario)
+    pub fn builder(scene: &dyn Scene) -> Result<SimBuilder, SimError> {
+        SimBuilder::new(scene)
     }
 
-    pub fn scenario(&self) -> &Scenario {
-        &self.scenario
+    /// The run's name, seed and initial body count.
+    pub fn info(&self) -> &RunInfo {
+        &self.info
     }
     /// Names of the plugins built in, in order.
     pub fn plugins(&self) -> &[&'static str] {
@@ -445,7 +473,7 @@ impl Simulation {
     /// Advance one step.
     pub fn step(&mut self) -> Result<(), SimError> {
         let clock = self.clock();
-        let limit = self.scenario.time.max_steps;
+        let limit = self.world.resource::<TimeControl>().max_steps;
         if clock.step >= limit {
             return Err(SimError::StepLimit {
                 step: clock.step,
@@ -528,7 +556,7 @@ impl Simulation {
         Clockwork::new(
             self.world.resource::<BoxGeometry>(),
             self.world.resource::<MaterialConstants>(),
-            self.world.resource::<PhysicsOptions>(),
+            self.world.resource::<Physics>(),
         )
     }
 

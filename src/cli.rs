@@ -203,7 +203,7 @@ fn validate(path: &Path) -> anyhow::Result<()> {
         s.time.end,
         s.seed
     );
-    let pipeline = agglo::systems::pipeline_of(&s).context("building the scene's pipeline")?;
+    let pipeline = s.pipeline().context("building the scene's pipeline")?;
     print!("{}", pipeline_text(&pipeline));
     Ok(())
 }
@@ -332,7 +332,7 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
                 s.counters().clamped_steps,
                 std::time::Instant::now(),
             ) {
-                let warning = clamping_warning(s.scenario(), *dt_min, c.time, window);
+                let warning = clamping_warning(&scenario, *dt_min, c.time, window);
                 // Above the progress bar, which also draws on stderr.
                 match &bar {
                     Some(bar) => bar.suspend(|| eprintln!("{warning}")),

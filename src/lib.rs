@@ -29,12 +29,12 @@ pub mod farm;
 pub mod inverse;
 pub mod output;
 pub mod record;
+pub mod scenario;
 pub mod study;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{
-    bodies, cloud, components, error, laws, observables, params, resources, scenario, schedule,
-    totals,
+    bodies, cloud, components, error, laws, observables, params, resources, scene, schedule, totals,
 };
 /// The built-in physics plugins (the `agglo-systems` crate).
 pub use agglo_systems as systems;
@@ -46,6 +46,7 @@ pub use glam;
 /// The types most users need: the engine's prelude (bodies, clock, stages, plugin API)
 /// and the built-in physics.
 pub mod prelude {
+    pub use crate::scenario::Scenario;
     pub use agglo_engine::prelude::*;
     pub use agglo_systems::{AddDefaultPlugins, DefaultPlugins};
 }

@@ -9,6 +9,10 @@ use anyhow::Context;
 
 use crate::components::BodyState;
 use crate::observables::Summary;
+use crate::record::Recording;
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 /// Header of the final-state CSV.
 pub const FINAL_STATE_HEADER: &str = "id,x,y,z,vx,vy,vz,mass,radius,temperature,hardness,primaries";
@@ -46,4 +50,22 @@ pub fn write_final_state(path: &Path, bodies: &[BodyState]) -> anyhow::Result<()
 pub fn write_summary(path: &Path, summary: &Summary) -> anyhow::Result<()> {
     let text = serde_json::to_string_pretty(summary)?;
     std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Output options. Recording options live here too.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Output {
+    /// Write the summary JSON here (same as `--summary`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub summary: Option<String>,
+    /// Write the final state CSV here (same as `--final-state`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub final_state: Option<String>,
+    /// Record the run to this MCAP file (same as `--out`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mcap: Option<String>,
+    /// Recording options.
+    #[serde(default)]
+    pub recording: Recording,
 }

@@ -9,7 +9,7 @@
 //! step). With the papers' `nearest_neighbour` rule a pair counts only if one body
 //! is the other's nearest neighbour.
 //!
-//! Reads: positions, velocities, radii, ids; [`StepControl`], [`PhysicsOptions`].
+//! Reads: positions, velocities, radii, ids; [`StepControl`], [`Physics`](agglo_engine::scene::Physics).
 //! Writes: [`ContactList`], [`NeighbourTable`] (reused by the time-step system when
 //! nothing changed), [`Counters`] (deferred contacts, overlap violations).
 
@@ -21,7 +21,7 @@ use glam::DVec3;
 use super::grid::{NearPair, NeighbourGrid};
 use agglo_engine::components::{Mass, Particle, ParticleId, Position, Radius, Velocity};
 use agglo_engine::resources::{BoxGeometry, CONTACT_TOLERANCE, Contact, ContactList, StepControl};
-use agglo_engine::scenario::{ContactRule, ImpactsPerStep};
+use agglo_engine::scene::{ContactRule, ImpactsPerStep};
 
 /// The bodies of this step in stable-id order, plus their near pairs.
 #[derive(Resource, Debug, Default)]

@@ -14,7 +14,8 @@
 use bevy_ecs::prelude::*;
 
 use agglo_engine::components::{Hardness, Mass, Particle, Radius, Temperature};
-use agglo_engine::resources::{EnergyLedger, MaterialConstants, PhysicsOptions, SimClock};
+use agglo_engine::resources::{EnergyLedger, MaterialConstants, SimClock};
+use agglo_engine::scene::Physics;
 
 pub use agglo_engine::laws::cooling::{
     CoolingLaw, convective_closed_form, radiative_closed_form,
@@ -24,7 +25,7 @@ pub use agglo_engine::laws::cooling::{
 /// The system.
 pub fn cool_bodies(
     material: Res<MaterialConstants>,
-    options: Res<PhysicsOptions>,
+    options: Res<Physics>,
     clock: Res<SimClock>,
     mut bodies: Query<(&Mass, &Radius, &mut Temperature, &mut Hardness), With<Particle>>,
     mut ledger: ResMut<EnergyLedger>,

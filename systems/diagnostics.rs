@@ -15,6 +15,8 @@
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
 use glam::DVec3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 use agglo_engine::components::{
     Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
@@ -24,19 +26,45 @@ use agglo_engine::resources::{
 };
 pub use agglo_engine::totals::{Totals, totals};
 
-/// How often and how strictly to check.
-#[derive(Resource, Debug, Clone, Copy, PartialEq)]
-pub struct DiagnosticsSettings {
+// The `diagnostics` section of a scenario: how often and how strictly to check, read by
+// the check systems as it is (the doc line below is the schema's description).
+/// Invariant checks (docs/model.md §10).
+#[derive(Resource, Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Diagnostics {
+    /// Check the invariants every `every` steps (and at the end); false = never.
+    #[serde(default = "agglo_engine::scene::yes")]
+    pub invariants: bool,
+    /// Check period in steps.
+    #[serde(default = "default_check_every")]
     pub every: u64,
-    /// Relative tolerance of the mass, momentum and energy checks, each relative to its
-    /// own scale (the scenario's `diagnostics.tolerance`, 1e-9 by default). Every tally
-    /// and total is a sum of terms each rounded to ~1e-16 of the energy it moves, and the
-    /// scales below bound those energies; even 10⁶ rounding errors all of one sign stay
-    /// below 1e-9 of the scale. Measured worst errors on P04's best case
-    /// (docs/model.md §13): kinetic 5.6e-16, thermal 3.1e-15, total 3.2e-15; on
-    /// quick_demo 1.1e-15, 2.5e-15, 2.5e-15. A wrong impulse of 1e-6 on each bounce
-    /// shows as 4.3e-8 in the kinetic ledger (`tests/suite/energy_ledgers.rs`).
+    /// Relative tolerance for mass, momentum and energy checks.
+    // Each check is relative to its own scale. Every tally and total is a sum of terms
+    // each rounded to ~1e-16 of the energy it moves, and the scales bound those
+    // energies; even 10⁶ rounding errors all of one sign stay below 1e-9 of the scale.
+    // Measured worst errors on P04's best case (docs/model.md §13): kinetic 5.6e-16,
+    // thermal 3.1e-15, total 3.2e-15; on quick_demo 1.1e-15, 2.5e-15, 2.5e-15. A wrong
+    // impulse of 1e-6 on each bounce shows as 4.3e-8 in the kinetic ledger
+    // (`tests/suite/energy_ledgers.rs`).
+    #[serde(default = "default_check_tol")]
     pub tolerance: f64,
+}
+
+fn default_check_every() -> u64 {
+    1
+}
+fn default_check_tol() -> f64 {
+    1e-9
+}
+
+impl Default for Diagnostics {
+    fn default() -> Self {
+        Self {
+            invariants: true,
+            every: default_check_every(),
+            tolerance: default_check_tol(),
+        }
+    }
 }
 
 const MAX_REPORTED: usize = 20;
@@ -71,7 +99,7 @@ impl FromWorld for InitialEnergies {
 /// counter): one system parameter for both check systems.
 #[derive(SystemParam)]
 pub struct Checks<'w, 's> {
-    settings: Res<'w, DiagnosticsSettings>,
+    settings: Res<'w, Diagnostics>,
     material: Res<'w, MaterialConstants>,
     clock: Res<'w, SimClock>,
     ledger: Res<'w, EnergyLedger>,

@@ -27,11 +27,10 @@ pub mod time_step;
 use bevy_ecs::prelude::*;
 
 use agglo_engine::components::{Mass, Particle, Temperature, Velocity};
-use agglo_engine::error::ScenarioError;
 use agglo_engine::error::SimError;
 use agglo_engine::resources::MaterialConstants;
-use agglo_engine::scenario::{CoolingMethod, Core, Scenario};
-use agglo_engine::schedule::{Pipeline, SimBuilder, SimPlugin, Simulation, StepSystems};
+use agglo_engine::scene::{CoolingMethod, Core, Physics, Scene, TimeControl, event_core_needs};
+use agglo_engine::schedule::{SimBuilder, SimPlugin, Simulation, StepSystems};
 
 /// Contact detection (stage 1) and step-size selection (stage 5): the event core
 /// when the scene allows it (docs/model.md §4), the stepped core otherwise.
@@ -41,10 +40,12 @@ impl SimPlugin for ContactPlugin {
         "contact"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        let why = core_reason(sim.scenario());
+        let time = sim.resource::<TimeControl>().clone();
+        let physics = *sim.resource::<Physics>();
+        let why = core_reason(&time, &physics, sim.uses_event_core());
         sim.explain_core(why);
-        if sim.scenario().uses_event_core() {
-            let brute_force = sim.scenario().time.core == Core::EventsBruteForce;
+        if sim.uses_event_core() {
+            let brute_force = time.core == Core::EventsBruteForce;
             let core = events::build_core(sim.world_mut(), brute_force);
             sim.insert_resource(core)
                 .add_systems(StepSystems::Contact, events::pop_due_contacts)
@@ -61,35 +62,24 @@ impl SimPlugin for ContactPlugin {
 }
 
 /// Why the scene runs on the core it runs on, in the scenario's terms.
-fn core_reason(s: &Scenario) -> String {
-    match s.time.core {
+fn core_reason(time: &TimeControl, physics: &Physics, event_core: bool) -> String {
+    match time.core {
         Core::Events => "time.core = \"events\"".into(),
         Core::EventsBruteForce => {
             "time.core = \"events_brute_force\" (the O(N²) reference predictor)".into()
         }
         Core::Stepped => "time.core = \"stepped\"".into(),
-        Core::Auto if s.uses_event_core() => "time.core = \"auto\" and the scene allows it \
+        Core::Auto if event_core => "time.core = \"auto\" and the scene allows it \
              (adaptive stepping with step_factor = 1, contact rule \"all\", cooling not \"explicit\" or \"explicit_clamped\")"
             .into(),
-        Core::Auto => format!("time.core = \"auto\", and {}", event_core_obstacle(s)),
+        // The obstacle in the words `validate` uses under `time.core` (one source for the
+        // rule, engine/scene.rs, so the two cannot drift apart).
+        Core::Auto => format!(
+            "time.core = \"auto\", and {}",
+            event_core_needs(time, physics)
+                .unwrap_or_else(|| "the scene does not fit the event core".into())
+        ),
     }
-}
-
-/// What keeps `s` off the event core, in the words of the scenario's own check:
-/// asking for the event core explicitly makes `validate` name the obstacle under
-/// `time.core` (one source for the rule, so the two cannot drift apart).
-fn event_core_obstacle(s: &Scenario) -> String {
-    let mut probe = s.clone();
-    probe.time.core = Core::Events;
-    let issues = match probe.validate() {
-        Err(ScenarioError::Invalid(issues)) => issues,
-        _ => Vec::new(),
-    };
-    issues
-        .into_iter()
-        .find(|issue| issue.path == "time.core")
-        .map(|issue| issue.message)
-        .unwrap_or_else(|| "the scene does not fit the event core".into())
 }
 
 /// The impact / heat solve (stage 2).
@@ -99,7 +89,9 @@ impl SimPlugin for ImpactPlugin {
         "impact"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        sim.add_systems(StepSystems::Impact, impact::resolve_impacts);
+        // The scene's `impact` section, or the defaults when it gives none.
+        sim.init_resource::<impact::ImpactModel>()
+            .add_systems(StepSystems::Impact, impact::resolve_impacts);
     }
 }
 
@@ -110,7 +102,7 @@ impl SimPlugin for MergePlugin {
         "merge"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        if sim.scenario().physics.merging {
+        if sim.resource::<Physics>().merging {
             sim.add_systems(StepSystems::Merge, merge::merge_bonded);
         } else {
             sim.leave_out("merging off: physics.merging = false");
@@ -125,7 +117,10 @@ impl SimPlugin for FragmentPlugin {
         "fragment"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        match fragmentation_off(sim.scenario()) {
+        match fragmentation_off(
+            sim.resource::<MaterialConstants>(),
+            sim.resource::<Physics>(),
+        ) {
             Some(why) => sim.leave_out(format!("fragmentation off: {why}")),
             None => sim.add_systems(StepSystems::Fragment, fragment::fragment_bodies),
         };
@@ -133,10 +128,10 @@ impl SimPlugin for FragmentPlugin {
 }
 
 /// Why the scene has no fragmentation, if it has none.
-fn fragmentation_off(s: &Scenario) -> Option<&'static str> {
-    if s.material.gamma.is_none() {
+fn fragmentation_off(material: &MaterialConstants, physics: &Physics) -> Option<&'static str> {
+    if material.gamma == f64::INFINITY {
         Some("γ = ∞ (material.gamma = null)")
-    } else if !s.physics.fragmentation {
+    } else if !physics.fragmentation {
         Some("physics.fragmentation = false")
     } else {
         None
@@ -151,7 +146,7 @@ impl SimPlugin for CoolingPlugin {
         "cooling"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        match no_cooling_system(sim.scenario()) {
+        match no_cooling_system(sim) {
             Some(why) => sim.leave_out(why),
             None => sim.add_systems(StepSystems::Cooling, cooling::cool_bodies),
         };
@@ -159,12 +154,13 @@ impl SimPlugin for CoolingPlugin {
 }
 
 /// Why the scene schedules no cooling system, if it schedules none.
-fn no_cooling_system(s: &Scenario) -> Option<&'static str> {
-    if s.physics.cooling == CoolingMethod::Off {
+fn no_cooling_system(sim: &SimBuilder) -> Option<&'static str> {
+    let material = sim.resource::<MaterialConstants>();
+    if sim.resource::<Physics>().cooling == CoolingMethod::Off {
         Some("cooling off: physics.cooling = \"off\"")
-    } else if s.material.epsilon == 0.0 && s.material.hc == 0.0 {
+    } else if material.emissivity == 0.0 && material.convection == 0.0 {
         Some("cooling off: ε = hc = 0 (material.epsilon, material.hc)")
-    } else if s.uses_event_core() {
+    } else if sim.uses_event_core() {
         Some(
             "cooling: done lazily by the event core (each body cooled exactly over its interval when read)",
         )
@@ -181,7 +177,7 @@ impl SimPlugin for MotionPlugin {
         "motion"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        if sim.scenario().uses_event_core() {
+        if sim.uses_event_core() {
             sim.leave_out(
                 "drift, boundary: done lazily by the event core (each body moved and wrapped when read)",
             );
@@ -199,14 +195,14 @@ impl SimPlugin for DiagnosticsPlugin {
         "diagnostics"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        let d = sim.scenario().diagnostics.clone();
-        sim.insert_resource(diagnostics::DiagnosticsSettings {
-            every: d.every,
-            tolerance: d.tolerance,
-        });
-        if d.invariants && sim.scenario().uses_event_core() {
+        // The scene's `diagnostics` section, or the defaults when it gives none.
+        let d = sim
+            .world_mut()
+            .get_resource_or_init::<diagnostics::Diagnostics>()
+            .clone();
+        if d.invariants && sim.uses_event_core() {
             let start = initial_totals(sim.world_mut());
-            let full_every = d.every.max(sim.scenario().cloud.count as u64);
+            let full_every = d.every.max(sim.info().initial_bodies as u64);
             sim.insert_resource(diagnostics::RunningTotals::new(&start, full_every))
                 .add_systems(StepSystems::Diagnostics, diagnostics::check_step_totals);
         } else if d.invariants {
@@ -236,14 +232,14 @@ pub fn default_plugins() -> Vec<Box<dyn SimPlugin>> {
 /// `agglo::prelude::*`).
 pub trait DefaultPlugins {
     /// The scenario with the built-in physics ([`default_plugins`]).
-    fn new(scenario: &Scenario) -> Result<Self, SimError>
+    fn new(scene: &dyn Scene) -> Result<Self, SimError>
     where
         Self: Sized;
 }
 
 impl DefaultPlugins for Simulation {
-    fn new(scenario: &Scenario) -> Result<Self, SimError> {
-        let mut builder = Simulation::builder(scenario)?;
+    fn new(scene: &dyn Scene) -> Result<Self, SimError> {
+        let mut builder = Simulation::builder(scene)?;
         builder.add_plugins(default_plugins());
         builder.build()
     }
@@ -259,26 +255,6 @@ impl AddDefaultPlugins for SimBuilder {
     fn add_default_plugins(&mut self) -> &mut Self {
         self.add_plugins(default_plugins())
     }
-}
-
-/// The pipeline [`Simulation::new`] would build for `scenario`, without generating
-/// its cloud: the plugins decide from the scenario, never from the bodies, so a
-/// one-body copy of the scene gets the same systems at no cost for any N.
-pub fn pipeline_of(scenario: &Scenario) -> Result<Pipeline, SimError> {
-    scenario.validate()?;
-    let sim = <Simulation as DefaultPlugins>::new(&one_body_copy(scenario))?;
-    Ok(sim.pipeline().clone())
-}
-
-/// `scenario` with a single body of the same primary radius (the first placed body,
-/// if the scene places its bodies): what it needs to build its pipeline.
-fn one_body_copy(scenario: &Scenario) -> Scenario {
-    let mut one = scenario.clone();
-    one.cloud.radius = Some(scenario.primary_radius());
-    one.cloud.size_ratio = None;
-    one.cloud.count = 1;
-    one.cloud.bodies.truncate(1);
-    one
 }
 
 /// Totals over the bodies now in the world.

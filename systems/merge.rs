@@ -27,7 +27,7 @@ use agglo_engine::components::{
     Hardness, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
 };
 use agglo_engine::resources::ImpactRecords;
-use agglo_engine::scenario::ImpactsPerStep;
+use agglo_engine::scene::ImpactsPerStep;
 
 type MergeQuery<'w, 's> = Query<
     'w,

@@ -40,6 +40,9 @@ pub use writer::{Recorder, RecordingReport};
 
 use crate::scenario::Scenario;
 
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
 /// Topic of the bodies (`foxglove.SceneUpdate`).
 pub const PARTICLES_TOPIC: &str = "/particles";
 /// Topic of the periodic box (`foxglove.SceneUpdate`), written once.
@@ -215,5 +218,34 @@ mod tests {
         assert_eq!(s.log_time(-1.0), 0);
         assert_eq!(s.log_time(f64::NAN), 0);
         assert_eq!(s.log_time(f64::INFINITY), 0);
+    }
+}
+
+/// How often and how a recording samples the run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Recording {
+    /// Record every k-th step (0 = use `interval` only).
+    #[serde(default)]
+    pub every_steps: u64,
+    /// Record whenever this much simulated time [s] has passed; `null` = T / 300.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval: Option<f64>,
+    /// Playback duration [s] of the whole run at 1×: log time = simulated time × (this / T).
+    #[serde(default = "default_playback")]
+    pub playback_seconds: f64,
+}
+
+fn default_playback() -> f64 {
+    30.0
+}
+
+impl Default for Recording {
+    fn default() -> Self {
+        Self {
+            every_steps: 0,
+            interval: None,
+            playback_seconds: default_playback(),
+        }
     }
 }

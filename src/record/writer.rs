@@ -32,6 +32,7 @@ use crate::components::BodyState;
 use crate::error::SimError;
 use crate::observables::Summary;
 use crate::resources::{BoxGeometry, Counters};
+use crate::scenario::Scenario;
 use crate::schedule::Simulation;
 
 /// Target uncompressed chunk size [bytes]: about 8 snapshots of 1000 bodies, so a
@@ -104,7 +105,11 @@ impl Recorder {
     /// Create `path` and record the initial state of `sim` (which must not have stepped yet
     /// for the recording to start at t = 0). `command_line` goes into the metadata.
     pub fn create(path: &Path, sim: &Simulation, command_line: &str) -> anyhow::Result<Self> {
-        let scenario = sim.scenario();
+        // The description the run was built from (a Scenario puts itself in the world).
+        let scenario = sim
+            .world()
+            .get_resource::<Scenario>()
+            .context("recording needs a simulation built from a Scenario")?;
         let file =
             File::create(path).with_context(|| format!("creating recording {}", path.display()))?;
         let mut writer = mcap::WriteOptions::new()
@@ -338,11 +343,7 @@ impl Recorder {
 
     /// The periodic box [−D, D]³ as a line list of its 12 edges.
     fn write_box(&mut self, sim: &Simulation) -> anyhow::Result<()> {
-        let d = sim
-            .world()
-            .get_resource::<BoxGeometry>()
-            .map(|g| g.half_width)
-            .unwrap_or(sim.scenario().domain.half_width);
+        let d = sim.world().resource::<BoxGeometry>().half_width;
         let corner = |i: usize| Point3 {
             x: if i & 1 == 0 { -d } else { d },
             y: if i & 2 == 0 { -d } else { d },

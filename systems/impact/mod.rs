@@ -5,7 +5,8 @@
 //! area, impulsive force, friction, heating and thermal softening, then either
 //! bond the pair (common velocity, marked for merging) or bounce it with e*.
 //!
-//! Reads: [`ContactList`], [`MaterialConstants`], [`ImpactSettings`].
+//! Reads: [`ContactList`], [`MaterialConstants`], [`ImpactModel`] (the scenario's `impact`
+//! section, defined in `settings.rs`).
 //! Writes: velocities, temperatures, hardness and positions (a bouncing pair that
 //! overlaps is pushed apart to touching) of the pair; [`ImpactRecords`],
 //! [`Counters`], [`EnergyLedger`], [`StateChanged`].
@@ -20,10 +21,11 @@ use glam::DVec3;
 
 use agglo_engine::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
 use agglo_engine::resources::{
-    ContactList, ImpactRecord, ImpactRecords, ImpactSettings, MaterialConstants, hardness,
+    ContactList, ImpactRecord, ImpactRecords, MaterialConstants, hardness,
 };
-use agglo_engine::scenario::{
-    BondTest, DurationLaw, FrictionCap, PairHardness, Separation, SolverKind, WorkHeat,
+mod settings;
+pub use settings::{
+    BondTest, DurationLaw, FrictionCap, ImpactModel, PairHardness, Separation, SolverKind, WorkHeat,
 };
 
 /// One body's state entering an impact.
@@ -73,7 +75,7 @@ pub struct PairModel {
 }
 
 impl PairModel {
-    pub fn new(material: &MaterialConstants, settings: &ImpactSettings) -> Self {
+    pub fn new(material: &MaterialConstants, settings: &ImpactModel) -> Self {
         Self {
             a0: settings.a0,
             af: settings.af,
@@ -703,7 +705,7 @@ type ImpactQuery<'w, 's> = Query<
 pub fn resolve_impacts(
     contacts: Res<ContactList>,
     scene: SceneConstants,
-    settings: Res<ImpactSettings>,
+    settings: Res<ImpactModel>,
     mut bodies: ImpactQuery,
     mut records: ResMut<ImpactRecords>,
     books: RunBooks,

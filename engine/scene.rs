@@ -1,0 +1,286 @@
+//! The scene as the engine sees it: the [`Scene`] trait a run description implements,
+//! and the sections of it the engine itself owns because every stage shares them —
+//! `material` ([`Material`]), `time` ([`TimeControl`]) and `physics` ([`Physics`]);
+//! the box is [`crate::resources::BoxGeometry`] and the cloud
+//! [`crate::cloud::Cloud`]. Each section is one type, deserialised from the scenario
+//! file and inserted into the world as it is: a system reads the section, never a copy.
+//! The sections of the other concerns live with them (`impact` in the impact plugin,
+//! `diagnostics` in the diagnostics plugin, `output` with the drivers) and reach the
+//! world through [`Scene::insert_settings`]. Symbols follow docs/model.md §1; all
+//! values SI.
+
+use bevy_ecs::prelude::*;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::cloud::Cloud;
+use crate::error::ScenarioError;
+pub use crate::laws::cooling::CoolingMethod;
+use crate::resources::BoxGeometry;
+
+/// A run's description, as the engine needs it to build a world: `agglo`'s `Scenario`
+/// is one. The engine reads its own sections through the accessors; every other
+/// section the description holds goes into the world through
+/// [`Scene::insert_settings`], where the plugin that owns it reads it.
+pub trait Scene {
+    /// Short name, used in summaries and recordings.
+    fn name(&self) -> &str;
+    /// Seed of the scene's single random generator.
+    fn seed(&self) -> u64;
+    /// The periodic box (`box`).
+    fn domain(&self) -> &BoxGeometry;
+    /// The initial cloud (`cloud`).
+    fn cloud(&self) -> &Cloud;
+    /// The material (`material`).
+    fn material(&self) -> &Material;
+    /// End time and step control (`time`).
+    fn time(&self) -> &TimeControl;
+    /// Which physics runs (`physics`).
+    fn physics(&self) -> &Physics;
+    /// Check every field of the description; each problem names its field path.
+    fn validate(&self) -> Result<(), ScenarioError>;
+    /// Insert the sections the engine does not own as resources (e.g. `impact`,
+    /// `diagnostics`), and anything the drivers want to find in the world.
+    fn insert_settings(&self, world: &mut World);
+}
+
+/// Why a scene with these time and physics sections cannot run on the event core, if
+/// it cannot (docs/model.md §4): the event core needs exact contact times and lazy
+/// cooling, which the rules below exclude.
+pub fn event_core_obstacle(time: &TimeControl, physics: &Physics) -> Option<&'static str> {
+    let exact_steps = matches!(
+        time.stepping,
+        Stepping::Adaptive { step_factor, .. } if step_factor == 1.0
+    );
+    if !exact_steps {
+        return Some("adaptive stepping with step_factor = 1 (time.stepping)");
+    }
+    if physics.contact_rule != ContactRule::All {
+        return Some("physics.contact_rule = \"all\"");
+    }
+    if physics.impacts_per_step != ImpactsPerStep::OnePerBody {
+        return Some("physics.impacts_per_step = \"one_per_body\"");
+    }
+    if matches!(
+        physics.cooling,
+        CoolingMethod::Explicit | CoolingMethod::ExplicitClamped
+    ) {
+        return Some("physics.cooling other than \"explicit\" or \"explicit_clamped\"");
+    }
+    None
+}
+
+/// What keeps a scene asking for the event core off it, as `validate` and the pipeline
+/// say it: "the event core needs …".
+pub fn event_core_needs(time: &TimeControl, physics: &Physics) -> Option<String> {
+    event_core_obstacle(time, physics).map(|why| format!("the event core needs {why}"))
+}
+
+/// True when a scene with these sections runs on the event core (docs/model.md §4).
+pub fn uses_event_core(time: &TimeControl, physics: &Physics) -> bool {
+    match time.core {
+        Core::Auto => event_core_obstacle(time, physics).is_none(),
+        Core::Events | Core::EventsBruteForce => true,
+        Core::Stepped => false,
+    }
+}
+
+/// `serde(skip_serializing_if)` for options at their default: a scenario written back
+/// out names only what it changed.
+pub fn is_default<T: Default + PartialEq>(x: &T) -> bool {
+    x == &T::default()
+}
+
+/// `serde(default)` for switches that are on unless turned off.
+pub fn yes() -> bool {
+    true
+}
+
+/// `serde(default)` for factors that are 1 unless given.
+pub fn one() -> f64 {
+    1.0
+}
+
+/// One material per scene (docs/model.md §1). Symbols as in docs/model.md.
+#[derive(Resource, Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+#[allow(non_snake_case)]
+pub struct Material {
+    /// Density ρ [kg/m³].
+    pub rho: f64,
+    /// Base hardness H0 [Pa].
+    pub H0: f64,
+    /// Heat capacity C [J/(kg K)].
+    pub C: f64,
+    /// Activation energy Q [J/mol] (P02's U); 0 disables thermal softening.
+    #[serde(default)]
+    pub Q: f64,
+    /// Reaction constant α [J/m²] (P02's ϑ): heat released per unit contact area per impact.
+    #[serde(default)]
+    pub alpha: f64,
+    /// Surface energy γ [J/m²] for fragmentation; `null` (or absent) = ∞ = no fragmentation.
+    #[serde(default)]
+    pub gamma: Option<f64>,
+    /// Friction coefficient μ0.
+    #[serde(default)]
+    pub mu0: f64,
+    /// Emissivity ε, 0 ≤ ε ≤ 1.
+    #[serde(default)]
+    pub epsilon: f64,
+    /// Convection coefficient hc [W/(m² K)].
+    #[serde(default)]
+    pub hc: f64,
+    /// Gas temperature θ0 [K], also the initial particle temperature.
+    pub theta0: f64,
+    /// Far-field radiation temperature θs [K].
+    #[serde(default)]
+    pub theta_s: f64,
+}
+
+/// End time and step control (docs/model.md §4).
+#[derive(Resource, Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TimeControl {
+    /// End time T [s].
+    pub end: f64,
+    /// Step-size control.
+    #[serde(default)]
+    pub stepping: Stepping,
+    /// Hard cap on the number of steps (a run that reaches it stops with an error).
+    #[serde(default = "default_max_steps")]
+    pub max_steps: u64,
+    /// Which core advances the scene (docs/model.md §4): `auto` picks the event core
+    /// whenever the scene allows it.
+    #[serde(default, skip_serializing_if = "Core::is_auto")]
+    pub core: Core,
+}
+
+/// The two ways of advancing a scene (docs/model.md §4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Core {
+    /// The event core for adaptive stepping with c = 1, the `all` contact rule and
+    /// non-explicit cooling; the stepped core otherwise.
+    #[default]
+    Auto,
+    /// Event-driven: every step lands on the next contact, costing O(k log N).
+    Events,
+    /// The event core predicting every pair through every image: O(N²) per event.
+    /// A reference for tests, not for production runs.
+    EventsBruteForce,
+    /// Every stage visits every body each step (fixed Δt, c ≠ 1, the papers' rules).
+    Stepped,
+}
+
+impl Core {
+    fn is_auto(&self) -> bool {
+        *self == Core::Auto
+    }
+}
+
+fn default_max_steps() -> u64 {
+    50_000_000
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Stepping {
+    /// Adaptive Δt = clamp(c·t_c, Δt_min, min(Δt_max, skin / (2 v_max))).
+    Adaptive {
+        /// Step factor c: 1 lands exactly on the next contact; > 1 trades accuracy for speed.
+        #[serde(default = "one")]
+        step_factor: f64,
+        /// Lower bound Δt_min [s].
+        #[serde(default = "default_dt_min")]
+        dt_min: f64,
+        /// Upper bound Δt_max [s].
+        #[serde(default = "default_dt_max")]
+        dt_max: f64,
+        /// Neighbour-search margin, as a multiple of the primary radius b0.
+        #[serde(default = "default_skin")]
+        skin: f64,
+    },
+    /// Fixed Δt [s]; contacts are found only as overlaps at step ends (pairs may tunnel).
+    Fixed { dt: f64 },
+}
+
+fn default_dt_min() -> f64 {
+    1e-8
+}
+fn default_dt_max() -> f64 {
+    1e-3
+}
+fn default_skin() -> f64 {
+    // Measured on paper2004_best: 0.25 b0 → 2090 steps, 0.5 → 1712, 1.0 → 1586, but the
+    // cell search grows as (2 + skin)³: 0.5 b0 is the fastest (identical results for all).
+    0.5
+}
+
+impl Default for Stepping {
+    fn default() -> Self {
+        Stepping::Adaptive {
+            step_factor: 1.0,
+            dt_min: default_dt_min(),
+            dt_max: default_dt_max(),
+            skin: default_skin(),
+        }
+    }
+}
+
+/// Which physics systems the scene runs (docs/model.md §3: a scene runs only what it needs).
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Physics {
+    /// Bonded pairs merge into one body (§6).
+    #[serde(default = "yes")]
+    pub merging: bool,
+    /// Bodies that absorbed enough energy fragment (§7); also off when γ is `null`.
+    #[serde(default = "yes")]
+    pub fragmentation: bool,
+    /// Cooling integrator (§8); also off when ε = 0 and hc = 0.
+    #[serde(default)]
+    pub cooling: CoolingMethod,
+    /// Contact rule: `all` contacts (deepest first, one per body per step), or the papers'
+    /// `nearest_neighbour` rule (each body may only meet its nearest neighbour).
+    #[serde(default)]
+    pub contact_rule: ContactRule,
+    /// Reading: how many impacts a body takes in one step of the stepped core —
+    /// `one_per_body` (the engine: its deepest contact; the rest wait a step) or
+    /// `every_contact` (every contact found, in order; the papers do not say).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub impacts_per_step: ImpactsPerStep,
+}
+
+/// How many impacts one body takes in one step (`physics.impacts_per_step`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ImpactsPerStep {
+    /// One impact per body per step, deepest contact first (docs/model.md §4.2).
+    #[default]
+    OnePerBody,
+    /// Every contact found in the step, in the same order, each with the velocities the
+    /// earlier ones left (stepped core only: on the event core contacts are events).
+    EveryContact,
+}
+
+impl Default for Physics {
+    fn default() -> Self {
+        Self {
+            merging: true,
+            fragmentation: true,
+            cooling: CoolingMethod::Implicit,
+            contact_rule: ContactRule::All,
+            impacts_per_step: ImpactsPerStep::OnePerBody,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactRule {
+    /// Every touching, approaching pair is a contact (deepest first, one per body per step).
+    #[default]
+    All,
+    /// The papers' staggering rule: a pair is a contact only if each is the other's nearest neighbour.
+    NearestNeighbour,
+}

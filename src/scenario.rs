@@ -1,0 +1,446 @@
+//! Scenario files: the JSON description of one run, its validation, and the
+//! JSON Schema printed by `agglo schema`.
+//!
+//! A scenario fully describes a run (box, cloud, material, impact model, time
+//! control, physics toggles, diagnostics, seed, output). Each section is a type that
+//! lives with the concern that reads it and is inserted into the world as it is
+//! (docs/architecture.md, "settings"): `box`, `cloud`, `material`, `time` and `physics`
+//! in the engine, `impact` and `diagnostics` in their plugins, `output` with the
+//! drivers; this file puts them together, loads and checks them. Parsing reports the field path of a
+//! type error or unknown field (via `serde_path_to_error`); [`Scenario::validate`]
+//! then checks every range and names the field and the allowed range. Symbols
+//! follow docs/model.md §1: all values SI.
+
+use std::path::Path;
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use bevy_ecs::prelude::*;
+
+use crate::error::{ScenarioError, SimError, ValidationIssue};
+pub use crate::output::Output;
+pub use crate::record::Recording;
+use crate::schedule::{Pipeline, Simulation};
+pub use agglo_engine::cloud::{Cloud, PlacedBody, VelocityDistribution};
+pub use agglo_engine::resources::BoxGeometry as Domain;
+pub use agglo_engine::scene::{
+    ContactRule, CoolingMethod, Core, ImpactsPerStep, Material, Physics, Stepping, TimeControl,
+};
+use agglo_engine::scene::{Scene, event_core_needs};
+use agglo_systems::DefaultPlugins;
+pub use agglo_systems::diagnostics::Diagnostics;
+pub use agglo_systems::impact::{
+    BondTest, DurationLaw, FrictionCap, ImpactModel, PairHardness, Separation, SolverKind, WorkHeat,
+};
+
+/// One complete run description.
+// It is also a resource of the world it builds, for the drivers (the recording embeds
+// it); physics reads only its own section.
+#[derive(Resource, Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Short name, used in summaries and recordings.
+    pub name: String,
+    /// Free text: what the scene is for.
+    #[serde(default)]
+    pub description: String,
+    /// Seed of the scene's single random generator (cloud placement and velocities).
+    pub seed: u64,
+    /// The periodic control volume.
+    #[serde(rename = "box")]
+    pub domain: Domain,
+    pub cloud: Cloud,
+    pub material: Material,
+    #[serde(default)]
+    pub impact: ImpactModel,
+    pub time: TimeControl,
+    #[serde(default)]
+    pub physics: Physics,
+    #[serde(default)]
+    pub diagnostics: Diagnostics,
+    #[serde(default)]
+    pub output: Output,
+}
+
+impl Scenario {
+    /// Parse a scenario from JSON text, reporting the path of the offending field.
+    pub fn from_json(text: &str) -> Result<Self, ScenarioError> {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let scenario: Scenario =
+            serde_path_to_error::deserialize(de).map_err(|e| ScenarioError::Parse {
+                path: e.path().to_string(),
+                message: e.inner().to_string(),
+            })?;
+        scenario.validate()?;
+        Ok(scenario)
+    }
+
+    /// Parse a scenario held as a JSON value (used by the inverse problem).
+    pub fn from_value(value: serde_json::Value) -> Result<Self, ScenarioError> {
+        let scenario: Scenario =
+            serde_path_to_error::deserialize(value).map_err(|e| ScenarioError::Parse {
+                path: e.path().to_string(),
+                message: e.inner().to_string(),
+            })?;
+        scenario.validate()?;
+        Ok(scenario)
+    }
+
+    /// Read and parse a scenario file.
+    pub fn load(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_json(&text)
+    }
+
+    /// Pretty JSON of this scenario (round-trips through [`Scenario::from_json`]).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("scenario serialises") // ok: plain data
+    }
+
+    /// The JSON Schema of the scenario format.
+    pub fn json_schema() -> serde_json::Value {
+        serde_json::to_value(schemars::schema_for!(Scenario)).expect("schema serialises") // ok: plain data
+    }
+
+    /// Primary radius b0 [m], from `radius` or `size_ratio`.
+    pub fn primary_radius(&self) -> f64 {
+        self.cloud.primary_radius(&self.domain)
+    }
+
+    /// Volume fraction of the initial cloud.
+    pub fn volume_fraction(&self) -> f64 {
+        self.cloud.volume_fraction(&self.domain)
+    }
+
+    /// The pipeline `Simulation::new` would build for this scene, without generating its
+    /// cloud: the plugins decide from the scene's sections, never from the bodies, so a
+    /// one-body copy of the scene gets the same systems at no cost for any N.
+    pub fn pipeline(&self) -> Result<Pipeline, SimError> {
+        self.validate()?;
+        let sim = <Simulation as DefaultPlugins>::new(&self.one_body_copy())?;
+        Ok(sim.pipeline().clone())
+    }
+
+    /// This scene with a single body of the same primary radius (the first placed body,
+    /// if the scene places its bodies): what it needs to build its pipeline.
+    fn one_body_copy(&self) -> Scenario {
+        let mut one = self.clone();
+        one.cloud.radius = Some(self.primary_radius());
+        one.cloud.size_ratio = None;
+        one.cloud.count = 1;
+        one.cloud.bodies.truncate(1);
+        one
+    }
+
+    /// True when this scene runs on the event core (docs/model.md §4).
+    pub fn uses_event_core(&self) -> bool {
+        agglo_engine::scene::uses_event_core(&self.time, &self.physics)
+    }
+
+    /// Check every range; all problems are reported together, each with its field path.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        let mut v = Validator::default();
+        v.positive("box.half_width", self.domain.half_width);
+
+        let c = &self.cloud;
+        if c.count == 0 || c.count > 10_000_000 {
+            v.push("cloud.count", "1 ≤ N ≤ 10 000 000", c.count as f64);
+        }
+        match (c.radius, c.size_ratio) {
+            (Some(_), Some(_)) | (None, None) => v.issues.push(ValidationIssue {
+                path: "cloud".into(),
+                message: "give exactly one of `radius` [m] or `size_ratio`".into(),
+            }),
+            (Some(b), None) => {
+                v.positive("cloud.radius", b);
+                if b.is_finite() && b > 0.0 && self.domain.half_width > 0.0 {
+                    let s = self.cloud.size_ratio_of_radius(b, &self.domain);
+                    if s >= 0.9 {
+                        v.issues.push(ValidationIssue {
+                            path: "cloud.radius".into(),
+                            message: format!(
+                                "radius {b:e} m gives size ratio s = {s:.4}; allowed s < 0.9 (volume fraction < 0.38)"
+                            ),
+                        });
+                    }
+                }
+            }
+            (None, Some(s)) => v.range_open("cloud.size_ratio", s, 0.0, 0.9, "0 < s < 0.9"),
+        }
+        for k in 0..3 {
+            v.finite(&format!("cloud.v_mean.{k}"), c.v_mean[k]);
+            v.non_negative(&format!("cloud.v_rel.{k}"), c.v_rel[k]);
+            v.below_speed_limit(&format!("cloud.v_rel.{k}"), c.v_rel[k]);
+        }
+        v.below_speed_limit("cloud.v_mean", norm(c.v_mean));
+        if !c.bodies.is_empty() {
+            if c.bodies.len() != c.count {
+                v.issues.push(ValidationIssue {
+                    path: "cloud.bodies".into(),
+                    message: format!(
+                        "lists {} bodies but cloud.count = {}; they must agree",
+                        c.bodies.len(),
+                        c.count
+                    ),
+                });
+            }
+            let d = self.domain.half_width;
+            for (i, body) in c.bodies.iter().enumerate() {
+                for k in 0..3 {
+                    let x = body.position[k];
+                    if !(x >= -d && x <= d) {
+                        v.push(
+                            &format!("cloud.bodies.{i}.position.{k}"),
+                            &format!("−D ≤ x ≤ D = {d:e}"),
+                            x,
+                        );
+                    }
+                    v.finite(&format!("cloud.bodies.{i}.velocity.{k}"), body.velocity[k]);
+                }
+                v.below_speed_limit(&format!("cloud.bodies.{i}.velocity"), norm(body.velocity));
+                if !(body.primaries >= 1.0 && body.primaries.is_finite()) {
+                    v.push(
+                        &format!("cloud.bodies.{i}.primaries"),
+                        "a finite number ≥ 1",
+                        body.primaries,
+                    );
+                }
+            }
+        }
+
+        let m = &self.material;
+        v.positive("material.rho", m.rho);
+        v.positive("material.H0", m.H0);
+        v.positive("material.C", m.C);
+        v.non_negative("material.Q", m.Q);
+        v.non_negative("material.alpha", m.alpha);
+        if let Some(g) = m.gamma {
+            v.positive("material.gamma", g);
+        }
+        v.non_negative("material.mu0", m.mu0);
+        v.range_closed("material.epsilon", m.epsilon, 0.0, 1.0, "0 ≤ ε ≤ 1");
+        v.non_negative("material.hc", m.hc);
+        v.positive("material.theta0", m.theta0);
+        v.non_negative("material.theta_s", m.theta_s);
+
+        let i = &self.impact;
+        v.range_closed("impact.af", i.af, 0.0, 1.0, "0 < af ≤ 1");
+        if i.af == 0.0 {
+            v.push("impact.af", "0 < af ≤ 1", i.af);
+        }
+        v.range_closed("impact.a0", i.a0, 0.0, 1.0, "0 ≤ a0 ≤ af");
+        if i.a0.is_finite() && i.af.is_finite() && i.a0 > i.af {
+            v.issues.push(ValidationIssue {
+                path: "impact.a0".into(),
+                message: format!("must satisfy a0 ≤ af (got a0 = {}, af = {})", i.a0, i.af),
+            });
+        }
+        v.positive("impact.beta", i.beta);
+        v.range_open("impact.tol", i.tol, 0.0, 1.0, "0 < tol < 1");
+        if i.max_iterations == 0 {
+            v.push("impact.max_iterations", "≥ 1", 0.0);
+        }
+        if i.solver == SolverKind::ClosedFormPrinted && i.duration != DurationLaw::P04 {
+            v.issues.push(ValidationIssue {
+                path: "impact.solver".into(),
+                message: "closed_form_printed is P04 (4.14), derived for P04's duration law: \
+                          it needs impact.duration = \"p04\""
+                    .into(),
+            });
+        }
+
+        let t = &self.time;
+        v.positive("time.end", t.end);
+        if t.max_steps == 0 {
+            v.push("time.max_steps", "≥ 1", 0.0);
+        }
+        match &t.stepping {
+            Stepping::Adaptive {
+                step_factor,
+                dt_min,
+                dt_max,
+                skin,
+            } => {
+                v.positive("time.stepping.adaptive.step_factor", *step_factor);
+                v.positive("time.stepping.adaptive.dt_min", *dt_min);
+                v.positive("time.stepping.adaptive.dt_max", *dt_max);
+                if dt_min.is_finite() && dt_max.is_finite() && dt_min > dt_max {
+                    v.issues.push(ValidationIssue {
+                        path: "time.stepping.adaptive.dt_min".into(),
+                        message: format!(
+                            "must satisfy dt_min ≤ dt_max (got {dt_min:e} > {dt_max:e})"
+                        ),
+                    });
+                }
+                v.positive("time.stepping.adaptive.skin", *skin);
+                // Every step is at most Δt_max long: at least T/Δt_max steps.
+                v.step_count_fits(
+                    "time.stepping.adaptive.dt_max",
+                    "at least T/Δt_max",
+                    t.end,
+                    *dt_max,
+                    t.max_steps,
+                );
+            }
+            Stepping::Fixed { dt } => {
+                v.positive("time.stepping.fixed.dt", *dt);
+                v.step_count_fits("time.stepping.fixed.dt", "T/Δt", t.end, *dt, t.max_steps);
+            }
+        }
+        if matches!(t.core, Core::Events | Core::EventsBruteForce)
+            && let Some(message) = event_core_needs(&self.time, &self.physics)
+        {
+            v.issues.push(ValidationIssue {
+                path: "time.core".into(),
+                message,
+            });
+        }
+        if self.diagnostics.every == 0 {
+            v.push("diagnostics.every", "≥ 1", 0.0);
+        }
+        v.positive("diagnostics.tolerance", self.diagnostics.tolerance);
+        let r = &self.output.recording;
+        if let Some(dt) = r.interval {
+            v.positive("output.recording.interval", dt);
+        }
+        v.positive("output.recording.playback_seconds", r.playback_seconds);
+
+        if v.issues.is_empty() {
+            Ok(())
+        } else {
+            Err(ScenarioError::Invalid(v.issues))
+        }
+    }
+}
+
+/// The largest speed a scenario may give [m/s]: any |v_mean|, any v_rel component, any
+/// explicit body's |velocity|.
+///
+/// 1e5 m/s (100 km/s) is above the fastest natural impacts (meteoroids meet the Earth at
+/// up to ~72 km/s) and hundreds of times the speeds of granular flows and of the papers'
+/// scenes (P04: ~200 m/s; P02: ~4 m/s), so no physical scene is refused. Below it every
+/// energy stays far from overflow (½ v² ~ 1e10 J/kg) and runs of the
+/// shipped size finish: with v̄ = (1e5, 0, 0) m/s and v_rel = 1e5 m/s per component
+/// (release build) P04's best case takes 0.01 s, quick_demo 0.25 s (38 635 impacts).
+/// Above it lie only mistakes: with v_rel = 1e300 m/s the kinetic energies overflow to ∞
+/// and P04's scene was still running after 200 s.
+pub const MAX_SPEED: f64 = 1e5;
+
+/// Length of a 3-vector [same unit as its components].
+fn norm(x: [f64; 3]) -> f64 {
+    (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
+}
+
+/// Steps a run of length `end` [s] needs at steps of at most `dt` [s]: ⌈T/Δt⌉, less a
+/// relative 1e-12 (the clock lands on T when a step ends that close to it).
+fn planned_steps(end: f64, dt: f64) -> f64 {
+    (end / dt * (1.0 - 1e-12)).ceil()
+}
+
+/// Collects range violations with their field paths.
+#[derive(Default)]
+struct Validator {
+    issues: Vec<ValidationIssue>,
+}
+
+impl Validator {
+    fn push(&mut self, path: &str, allowed: &str, got: f64) {
+        self.issues.push(ValidationIssue {
+            path: path.into(),
+            message: format!("allowed {allowed} (got {got})"),
+        });
+    }
+    fn finite(&mut self, path: &str, x: f64) {
+        if !x.is_finite() {
+            self.push(path, "a finite number", x);
+        }
+    }
+    fn positive(&mut self, path: &str, x: f64) {
+        if !(x.is_finite() && x > 0.0) {
+            self.push(path, "a finite number > 0", x);
+        }
+    }
+    fn non_negative(&mut self, path: &str, x: f64) {
+        if !(x.is_finite() && x >= 0.0) {
+            self.push(path, "a finite number ≥ 0", x);
+        }
+    }
+    fn range_open(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
+        if !(x > lo && x < hi) {
+            self.push(path, allowed, x);
+        }
+    }
+    fn range_closed(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
+        if !(x >= lo && x <= hi) {
+            self.push(path, allowed, x);
+        }
+    }
+    /// A speed [m/s] above [`MAX_SPEED`] (NaN and ∞ are reported by the finiteness checks).
+    fn below_speed_limit(&mut self, path: &str, speed: f64) {
+        if speed.is_finite() && speed > MAX_SPEED {
+            self.issues.push(ValidationIssue {
+                path: path.into(),
+                message: format!(
+                    "speed {speed:.4e} m/s is not physical; allowed ≤ {MAX_SPEED:e} m/s \
+                     (100 km/s, above the fastest natural impacts)"
+                ),
+            });
+        }
+    }
+    /// A run of `end` [s] in steps of at most `dt` [s] that needs more than `max_steps`
+    /// steps can never finish. Non-positive or non-finite values are reported elsewhere.
+    fn step_count_fits(&mut self, path: &str, count: &str, end: f64, dt: f64, max_steps: u64) {
+        if !(end.is_finite() && end > 0.0 && dt.is_finite() && dt > 0.0) {
+            return;
+        }
+        let planned = planned_steps(end, dt);
+        if planned > max_steps as f64 {
+            self.issues.push(ValidationIssue {
+                path: path.into(),
+                message: format!(
+                    "{count} = {end:e} s / {dt:e} s = {planned:.3e} planned steps exceed \
+                     time.max_steps = {max_steps}; allowed Δt ≥ time.end / time.max_steps \
+                     = {:e} s (or raise time.max_steps)",
+                    end / max_steps as f64
+                ),
+            });
+        }
+    }
+}
+
+impl Scene for Scenario {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn seed(&self) -> u64 {
+        self.seed
+    }
+    fn domain(&self) -> &Domain {
+        &self.domain
+    }
+    fn cloud(&self) -> &Cloud {
+        &self.cloud
+    }
+    fn material(&self) -> &Material {
+        &self.material
+    }
+    fn time(&self) -> &TimeControl {
+        &self.time
+    }
+    fn physics(&self) -> &Physics {
+        &self.physics
+    }
+    fn validate(&self) -> Result<(), ScenarioError> {
+        Scenario::validate(self)
+    }
+    /// The plugins' sections as they are, and the whole description for the drivers.
+    fn insert_settings(&self, world: &mut World) {
+        world.insert_resource(self.impact);
+        world.insert_resource(self.diagnostics.clone());
+        world.insert_resource(self.clone());
+    }
+}

@@ -1,0 +1,176 @@
+//! The `impact` section of a scenario (docs/model.md §5): the impact/heat solve's
+//! parameters and the readings of the papers it can take. Deserialised from the
+//! scenario file into [`ImpactModel`], inserted into the world as it is, and read there
+//! by [`super::resolve_impacts`].
+
+use bevy_ecs::prelude::*;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use agglo_engine::scene::is_default;
+
+/// The impact/heat solve (docs/model.md §5).
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ImpactModel {
+    /// Contact-area fraction at full rebound (e = 1), 0 ≤ a0 ≤ af.
+    pub a0: f64,
+    /// Contact-area fraction at adhesion (e = 0), a0 ≤ af ≤ 1.
+    pub af: f64,
+    /// Impact-duration scale β (P02's k), > 0.
+    pub beta: f64,
+    /// Impact-duration law: `p04` (P04 (4.10)) or `p02` (P02 (12)).
+    #[serde(default)]
+    pub duration: DurationLaw,
+    /// μ = μ0 (1 − e) when true (P02), μ = μ0 otherwise (P04).
+    #[serde(default)]
+    pub friction_scales_with_adhesion: bool,
+    /// Relative tolerance TOL of the fixed point: |e_{K+1} − e_K| ≤ TOL·e_K (+ an absolute floor).
+    #[serde(default = "default_solver_tol")]
+    pub tol: f64,
+    /// Plain fixed-point iterations before the bracketed fallback takes over.
+    #[serde(default = "default_max_iterations")]
+    pub max_iterations: u32,
+    /// Solver: `safeguarded` (papers' iteration, then bracketed fallback; default) or
+    /// `plain` (the papers' iteration only; non-convergence is counted, the last iterate used).
+    #[serde(default)]
+    pub solver: SolverKind,
+    /// Reading: which hardness a pair bonds against in G(e) (docs/model.md §5.1 step 7):
+    /// `min` (the softer body governs, P04's footnote to (3.1); default), `harmonic`,
+    /// `arithmetic` (means of the two) or `max` (both surfaces must yield).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub pair_hardness: PairHardness,
+    /// Reading: `sticking` caps the friction impulse where sliding stops (default), `none`
+    /// applies the papers' full Coulomb impulse, which can reverse sliding and create
+    /// kinetic energy (docs/model.md §5.1 step 5).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub friction_cap: FrictionCap,
+    /// Reading: `fixed_point` bonds only when e* = 0 (default); `any_iterate` is P02 (20),
+    /// which bonds as soon as one iterate of the papers' iteration from e0 = 0 presses at
+    /// ≥ 2H (docs/model.md §5.3).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub bond_test: BondTest,
+    /// Reading: how a bouncing pair that overlaps is separated: `normal` (along n̂,
+    /// mass-weighted, centre of mass fixed; default) or `velocities` (P02 (8): each body
+    /// moves b(1 − δ) along its own outgoing velocity, δ = |r_ij|/(b_i + b_j)).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub separation: Separation,
+    /// Reading: `once` heats the pair by its kinetic-energy loss W (P02 (14)–(17); default);
+    /// `twice` is P04 (6.10), which adds the deformation work δW — the same dissipated
+    /// energy — on top, so the pair is heated by W more (docs/model.md §5.1 step 6).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub work_heat: WorkHeat,
+}
+
+/// How often the dissipated energy heats the pair (docs/model.md §5.1 step 6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum WorkHeat {
+    /// W once, split equally (P02 (14)–(17)).
+    #[default]
+    Once,
+    /// W twice: δK plus the deformation work δW of P04 (4.7)–(4.9), (6.10).
+    Twice,
+}
+
+/// Which hardness a pair bonds against (docs/model.md §5.1 step 7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PairHardness {
+    /// min(H_i, H_j): the softer body governs (P04, footnote to (3.1) and §6(b)).
+    #[default]
+    Min,
+    /// 2 H_i H_j / (H_i + H_j).
+    Harmonic,
+    /// (H_i + H_j) / 2.
+    Arithmetic,
+    /// max(H_i, H_j): both surfaces must yield.
+    Max,
+}
+
+/// Whether the tangential (friction) impulse is capped (docs/model.md §5.1 step 5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum FrictionCap {
+    /// Capped at the impulse m_red |v_ti − v_tj| that stops the sliding.
+    #[default]
+    Sticking,
+    /// The papers' uncapped impulse μ Ī δτ (P04 (4.17), P02 (7)); may create energy.
+    None,
+}
+
+/// When a pair bonds (docs/model.md §5.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum BondTest {
+    /// Only when the fixed point itself is e* = 0.
+    #[default]
+    FixedPoint,
+    /// P02 (20): when any iterate of the papers' iteration from e0 = 0 reaches P ≥ 2H.
+    AnyIterate,
+}
+
+/// How an overlapping bouncing pair is separated (docs/model.md §5.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Separation {
+    /// Along n̂ to touching, each body in inverse proportion to its mass.
+    #[default]
+    Normal,
+    /// P02 (8): r_i += b_i (1 − δ) v_i/|v_i|, and the same for j.
+    Velocities,
+}
+
+fn default_solver_tol() -> f64 {
+    1e-12
+}
+fn default_max_iterations() -> u32 {
+    100
+}
+
+impl Default for ImpactModel {
+    fn default() -> Self {
+        Self {
+            a0: 0.0,
+            af: 1.0,
+            beta: 1.0,
+            duration: DurationLaw::P04,
+            friction_scales_with_adhesion: false,
+            tol: default_solver_tol(),
+            max_iterations: default_max_iterations(),
+            solver: SolverKind::Safeguarded,
+            pair_hardness: PairHardness::Min,
+            friction_cap: FrictionCap::Sticking,
+            bond_test: BondTest::FixedPoint,
+            separation: Separation::Normal,
+            work_heat: WorkHeat::Once,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum DurationLaw {
+    /// δτ = (1 + e) β min(b) / ((v_in − v_jn)/2)  (P04 (4.10)).
+    #[default]
+    P04,
+    /// δτ = 2 β min(b) / ((1 + e)|v_in − v_jn|)  (P02 (12)).
+    P02,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverKind {
+    /// The papers' fixed-point iteration, with a bracketed fallback that cannot fail.
+    #[default]
+    Safeguarded,
+    /// The papers' fixed-point iteration alone (for stability studies).
+    Plain,
+    /// Reading: the closed form's smaller root as the answer, no iteration — the
+    /// quadratic of docs/model.md §5.2 with the pre-impact hardness (exact without
+    /// softening).
+    ClosedForm,
+    /// Reading: the same with P04 (4.14)'s coefficient c1 as printed, which carries a
+    /// spurious λ (docs/model.md §14); `p04` duration law only.
+    ClosedFormPrinted,
+}
