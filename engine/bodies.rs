@@ -23,26 +23,25 @@ use crate::components::{
     Temperature, Velocity,
 };
 use crate::laws::cooling::CoolingLaw;
-use crate::resources::{
-    BoxGeometry, EnergyLedger, LazyState, MaterialConstants, SimClock, StepEvents,
-};
-use crate::scene::{CoolingMethod, Physics};
+use crate::resources::{BoxGeometry, EnergyLedger, LazyState, SimClock, StepEvents};
+use crate::scene::{CoolingMethod, Material, Physics};
 use crate::totals::Totals;
 
-/// What bringing a body forward needs: the box, the material and whether it cools.
+/// What bringing a body forward needs: the box, the material (borrowed from the
+/// scene's resources) and whether the scene cools.
 #[derive(Debug, Clone, Copy)]
-pub struct Clockwork {
-    pub geometry: BoxGeometry,
-    pub material: MaterialConstants,
+pub struct Clockwork<'a> {
+    pub geometry: &'a BoxGeometry,
+    pub material: &'a Material,
     /// True when the scene cools (ε > 0 or hc > 0, cooling not off).
     pub cools: bool,
 }
 
-impl Clockwork {
-    pub fn new(geometry: &BoxGeometry, material: &MaterialConstants, options: &Physics) -> Self {
+impl<'a> Clockwork<'a> {
+    pub fn new(geometry: &'a BoxGeometry, material: &'a Material, options: &Physics) -> Self {
         Self {
-            geometry: *geometry,
-            material: *material,
+            geometry,
+            material,
             cools: material.cools() && options.cooling != CoolingMethod::Off,
         }
     }
@@ -52,7 +51,7 @@ impl Clockwork {
         if !self.cools || dt <= 0.0 {
             return theta;
         }
-        CoolingLaw::for_body(&self.material, mass, radius).advance(theta, dt)
+        CoolingLaw::for_body(self.material, mass, radius).advance(theta, dt)
     }
 }
 
@@ -91,7 +90,7 @@ pub fn bring_to(now: f64, clockwork: &Clockwork, body: LazyBody) -> f64 {
         *body.hardness = clockwork.material.hardness(after);
     }
     *body.t_ref = now;
-    body.mass * clockwork.material.heat_capacity * (before - after)
+    body.mass * clockwork.material.C * (before - after)
 }
 
 /// A body's state at `now` without changing it (for snapshots and summaries).
@@ -146,7 +145,7 @@ pub struct Bodies<'w, 's> {
     query: Query<'w, 's, BodyData, With<Particle>>,
     clock: Res<'w, SimClock>,
     geometry: Res<'w, BoxGeometry>,
-    material: Res<'w, MaterialConstants>,
+    material: Res<'w, Material>,
     options: Res<'w, Physics>,
     lazy: Res<'w, LazyState>,
     ledger: ResMut<'w, EnergyLedger>,
@@ -260,7 +259,7 @@ fn apply(
     let (entity, id, mut p, mut v, m, b, mut t, mut h, n, mut lt) = row;
     // The contribution before the body is brought forward: the heat it loses on the
     // way is tallied in the ledger and shows in its state after.
-    let c = clockwork.material.heat_capacity;
+    let c = clockwork.material.C;
     events.touch(entity, Totals::of_body(m.0, v.0, t.0, c));
     let mut tally = Tally::default();
     if lazy {

@@ -12,7 +12,7 @@ use rand::{Rng, RngExt};
 use crate::components::BodyState;
 use crate::error::SimError;
 use crate::resources::BoxGeometry;
-use crate::resources::MaterialConstants;
+use crate::scene::Material;
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -70,6 +70,27 @@ pub enum VelocityDistribution {
     Positive,
 }
 
+/// One primary grain of the scene: derived once from the `cloud`, `box` and `material`
+/// sections (the radius given or implied by the size ratio, and its mass).
+#[derive(bevy_ecs::prelude::Resource, Debug, Clone, Copy, PartialEq)]
+pub struct PrimaryGrain {
+    /// Radius b0 [m].
+    pub radius: f64,
+    /// Mass 4/3 π b0³ ρ [kg].
+    pub mass: f64,
+}
+
+impl PrimaryGrain {
+    /// The primary grain of `cloud` in `domain`, of density ρ = `material.rho`.
+    pub fn of(cloud: &Cloud, domain: &BoxGeometry, material: &Material) -> Self {
+        let b0 = cloud.primary_radius(domain);
+        Self {
+            radius: b0,
+            mass: 4.0 / 3.0 * std::f64::consts::PI * b0.powi(3) * material.rho,
+        }
+    }
+}
+
 impl Cloud {
     /// Primary radius b0 [m] in the box `domain`, from `radius` or `size_ratio`.
     pub fn primary_radius(&self, domain: &BoxGeometry) -> f64 {
@@ -102,13 +123,14 @@ impl Cloud {
 pub fn generate_cloud(
     cloud: &Cloud,
     domain: &BoxGeometry,
-    material: &MaterialConstants,
+    material: &Material,
+    primary: &PrimaryGrain,
     rng: &mut impl Rng,
 ) -> Result<Vec<BodyState>, SimError> {
     let count = cloud.count;
-    let b = material.primary_radius;
+    let b = primary.radius;
     if !cloud.bodies.is_empty() {
-        return placed_bodies(cloud, domain, material);
+        return placed_bodies(cloud, domain, material, primary);
     }
     let half = domain.half_width;
     let positions =
@@ -121,7 +143,7 @@ pub fn generate_cloud(
         })?;
     let c = cloud;
     let lambda = |rng: &mut dyn FnMut() -> f64| DVec3::new(rng(), rng(), rng());
-    let theta = material.theta_gas;
+    let theta = material.theta0;
     let bodies = positions
         .into_iter()
         .enumerate()
@@ -135,7 +157,7 @@ pub fn generate_cloud(
                 id: i as u64,
                 position,
                 velocity: DVec3::from_array(c.v_mean) + DVec3::from_array(c.v_rel) * l,
-                mass: material.primary_mass,
+                mass: primary.mass,
                 radius: b,
                 temperature: theta,
                 hardness: material.hardness(theta),
@@ -150,15 +172,16 @@ pub fn generate_cloud(
 fn placed_bodies(
     cloud: &Cloud,
     geometry: &BoxGeometry,
-    material: &MaterialConstants,
+    material: &Material,
+    primary: &PrimaryGrain,
 ) -> Result<Vec<BodyState>, SimError> {
-    let theta = material.theta_gas;
+    let theta = material.theta0;
     let bodies: Vec<BodyState> = cloud
         .bodies
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            let mass = material.primary_mass * p.primaries;
+            let mass = primary.mass * p.primaries;
             BodyState {
                 id: i as u64,
                 position: geometry.wrap(DVec3::from_array(p.position)),

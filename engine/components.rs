@@ -5,7 +5,7 @@
 //! hardness are derived quantities kept as components so that systems can read
 //! them without recomputing: whoever changes the mass must update [`Radius`], and
 //! whoever changes the [`Temperature`] must update [`Hardness`] (see
-//! [`crate::resources::Material::hardness`]).
+//! [`crate::scene::Material::hardness`]).
 
 use bevy_ecs::prelude::*;
 use glam::DVec3;

@@ -46,7 +46,8 @@ pub mod prelude {
     pub use crate::error::{ScenarioError, SimError};
     pub use crate::observables::{Growth, RadiusStats, Summary};
     pub use crate::params::{RunBooks, SceneConstants};
-    pub use crate::resources::{Counters, EnergyLedger, MaterialConstants, SimClock};
+    pub use crate::resources::{Counters, EnergyLedger, SimClock};
+    pub use crate::scene::Material;
     pub use crate::scene::Scene;
     pub use crate::schedule::{SimBuilder, SimPlugin, Simulation, StepSystems};
 }

@@ -158,7 +158,7 @@ impl Summary {
             steps: clock.step,
             initial_bodies: sim.info().initial_bodies,
             final_bodies: bodies.len(),
-            growth: Growth::of(bodies, material.rho, material.primary_radius),
+            growth: Growth::of(bodies, material.rho, sim.primary().radius),
             mean_primaries: bodies.iter().map(|b| b.primaries).sum::<f64>() / n,
             kinetic_energy: bodies
                 .iter()
@@ -166,7 +166,7 @@ impl Summary {
                 .sum(),
             thermal_energy: bodies
                 .iter()
-                .map(|b| b.mass * material.heat_capacity * b.temperature)
+                .map(|b| b.mass * material.C * b.temperature)
                 .sum(),
             mean_temperature: bodies.iter().map(|b| b.temperature).sum::<f64>() / n,
             max_temperature: bodies

@@ -5,16 +5,14 @@
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
 
-use crate::resources::{
-    BoxGeometry, Counters, EnergyLedger, MaterialConstants, SimClock, StateChanged, StepEvents,
-};
-use crate::scene::Physics;
+use crate::resources::{BoxGeometry, Counters, EnergyLedger, SimClock, StateChanged, StepEvents};
+use crate::scene::{Material, Physics};
 
 /// The scene's constants, read only: the material, the periodic box and the physics
 /// options.
 #[derive(SystemParam)]
 pub struct SceneConstants<'w> {
-    pub material: Res<'w, MaterialConstants>,
+    pub material: Res<'w, Material>,
     pub geometry: Res<'w, BoxGeometry>,
     pub options: Res<'w, Physics>,
 }

@@ -1,7 +1,7 @@
 //! Scene-wide constants and run state, held as ECS resources.
 //!
-//! - [`MaterialConstants`]: the one material of the scene (docs/model.md §1) and the
-//!   hardness law with its overflow rule;
+//! - the hardness law with its overflow rule, on [`Material`] (the scene's one material,
+//!   docs/model.md §1, whose section type lives in `scene.rs`);
 //! - [`StepControl`], [`BoxGeometry`]: how the step is computed (the box is the
 //!   scenario's `box` section itself);
 //! - [`SimClock`], [`Counters`], [`EnergyLedger`], [`InvariantReport`]: run state;
@@ -26,61 +26,14 @@ pub const STEFAN_BOLTZMANN: f64 = 5.670374419e-8;
 /// Exponents Q/(Rθ) above this give H = +∞ (exp(709) overflows f64).
 pub const HARDNESS_EXPONENT_LIMIT: f64 = 700.0;
 
-/// The scene's material (docs/model.md §1), SI units.
-#[derive(Resource, Debug, Clone, Copy, PartialEq)]
-pub struct MaterialConstants {
-    /// Density ρ [kg/m³].
-    pub rho: f64,
-    /// Base hardness H0 [Pa].
-    pub h0: f64,
-    /// Heat capacity C [J/(kg K)].
-    pub heat_capacity: f64,
-    /// Activation energy Q [J/mol].
-    pub activation_energy: f64,
-    /// Reaction constant α [J/m²].
-    pub alpha: f64,
-    /// Surface energy γ [J/m²]; +∞ disables fragmentation.
-    pub gamma: f64,
-    /// Friction coefficient μ0.
-    pub mu0: f64,
-    /// Emissivity ε.
-    pub emissivity: f64,
-    /// Convection coefficient hc [W/(m² K)].
-    pub convection: f64,
-    /// Gas temperature θ0 [K].
-    pub theta_gas: f64,
-    /// Far-field radiation temperature θs [K].
-    pub theta_far: f64,
-    /// Mass of one primary grain [kg].
-    pub primary_mass: f64,
-    /// Radius of one primary grain b0 [m].
-    pub primary_radius: f64,
-}
-
-impl MaterialConstants {
-    /// The constants of the `material` section `m` for primaries of radius `b0` [m].
-    pub fn from_material(m: &Material, b0: f64) -> Self {
-        Self {
-            rho: m.rho,
-            h0: m.H0,
-            heat_capacity: m.C,
-            activation_energy: m.Q,
-            alpha: m.alpha,
-            gamma: m.gamma.unwrap_or(f64::INFINITY),
-            mu0: m.mu0,
-            emissivity: m.epsilon,
-            convection: m.hc,
-            theta_gas: m.theta0,
-            theta_far: m.theta_s,
-            primary_mass: 4.0 / 3.0 * std::f64::consts::PI * b0.powi(3) * m.rho,
-            primary_radius: b0,
-        }
-    }
-
+/// The scene's material (the scenario's `material` section, read as it is) and what it
+/// implies: the hardness law with its overflow rule, the radius of a mass, whether it
+/// cools, its surface energy with `null` read as ∞.
+impl Material {
     /// Hardness H = H0 · exp(Q / (R θ)) [Pa]; +∞ when the exponent exceeds 700
     /// (docs/model.md §1, "hardness overflow"). Never NaN for θ > 0.
     pub fn hardness(&self, theta: f64) -> f64 {
-        hardness(self.h0, self.activation_energy, theta)
+        hardness(self.H0, self.Q, theta)
     }
 
     /// Radius of a body of mass `m` [kg]: (3 m / (4 π ρ))^(1/3).
@@ -90,21 +43,26 @@ impl MaterialConstants {
 
     /// True when cooling would change anything (ε > 0 or hc > 0).
     pub fn cools(&self) -> bool {
-        self.emissivity > 0.0 || self.convection > 0.0
+        self.epsilon > 0.0 || self.hc > 0.0
+    }
+
+    /// Surface energy γ [J/m²]; +∞ (no fragmentation) when the scenario gives `null`.
+    pub fn surface_energy(&self) -> f64 {
+        self.gamma.unwrap_or(f64::INFINITY)
     }
 }
 
 /// The cooling law of a body of the scene's material (docs/model.md §8).
 impl CoolingLaw {
     /// The law for a sphere of mass `mass` [kg] and radius `radius` [m].
-    pub fn for_body(material: &MaterialConstants, mass: f64, radius: f64) -> Self {
+    pub fn for_body(material: &Material, mass: f64, radius: f64) -> Self {
         let area = 4.0 * std::f64::consts::PI * radius * radius;
-        let mc = mass * material.heat_capacity;
+        let mc = mass * material.C;
         Self {
-            k_convection: material.convection * area / mc,
-            k_radiation: STEFAN_BOLTZMANN * material.emissivity * area / mc,
-            theta_gas: material.theta_gas,
-            theta_far: material.theta_far,
+            k_convection: material.hc * area / mc,
+            k_radiation: STEFAN_BOLTZMANN * material.epsilon * area / mc,
+            theta_gas: material.theta0,
+            theta_far: material.theta_s,
         }
     }
 }

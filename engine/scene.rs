@@ -102,7 +102,7 @@ pub fn one() -> f64 {
 }
 
 /// One material per scene (docs/model.md §1). Symbols as in docs/model.md.
-#[derive(Resource, Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 #[allow(non_snake_case)]
 pub struct Material {

@@ -17,6 +17,7 @@ use bevy_ecs::system::ScheduleSystem;
 use serde::{Deserialize, Serialize};
 
 use crate::bodies::{Clockwork, LazyBody, bring_to, state_at};
+use crate::cloud::PrimaryGrain;
 use crate::cloud::generate_cloud;
 use crate::components::{
     BodyState, Hardness, LocalTime, Mass, Particle, ParticleId, Position, Primaries, Radius,
@@ -24,7 +25,7 @@ use crate::components::{
 };
 use crate::error::SimError;
 use crate::resources::*;
-use crate::scene::{Physics, Scene, TimeControl, uses_event_core};
+use crate::scene::{Material, Physics, Scene, TimeControl, uses_event_core};
 use crate::totals::totals;
 
 /// The schedule that advances the world by one step.
@@ -144,10 +145,17 @@ impl SimBuilder {
     pub fn new(scene: &dyn Scene) -> Result<Self, SimError> {
         scene.validate()?;
         let mut world = World::new();
-        let b0 = scene.cloud().primary_radius(scene.domain());
-        let material = MaterialConstants::from_material(scene.material(), b0);
+        let material = *scene.material();
+        let primary = PrimaryGrain::of(scene.cloud(), scene.domain(), &material);
+        let b0 = primary.radius;
         let mut rng = SimRng::seeded(scene.seed());
-        let cloud = generate_cloud(scene.cloud(), scene.domain(), &material, &mut rng.0)?;
+        let cloud = generate_cloud(
+            scene.cloud(),
+            scene.domain(),
+            &material,
+            &primary,
+            &mut rng.0,
+        )?;
         let time = scene.time();
         let physics = scene.physics();
         let info = RunInfo {
@@ -158,10 +166,11 @@ impl SimBuilder {
         let next_id = cloud.len() as u64;
         let initial = totals(
             cloud.iter().map(|b| (b.mass, b.velocity, b.temperature)),
-            material.heat_capacity,
+            material.C,
         );
         world.spawn_batch(cloud.iter().map(|b| b.bundle()));
         world.insert_resource(material);
+        world.insert_resource(primary);
         world.insert_resource(*scene.domain());
         world.insert_resource(StepControl::from_time(time, b0));
         world.insert_resource(*physics);
@@ -451,8 +460,13 @@ impl Simulation {
     pub fn invariants(&self) -> InvariantReport {
         self.world.resource::<InvariantReport>().clone()
     }
-    pub fn material(&self) -> MaterialConstants {
-        *self.world.resource::<MaterialConstants>()
+    /// The scene's material (its `material` section).
+    pub fn material(&self) -> Material {
+        *self.world.resource::<Material>()
+    }
+    /// The primary grain (radius b0 [m] and mass) of the scene.
+    pub fn primary(&self) -> PrimaryGrain {
+        *self.world.resource::<PrimaryGrain>()
     }
     /// The core's own counts, when its plugin reports them
     /// ([`SimBuilder::report_core_stats`]; the event core does).
@@ -523,7 +537,11 @@ impl Simulation {
             return;
         }
         let now = self.clock().time;
-        let clockwork = self.clockwork();
+        // Copies of the scene constants, so the world can be borrowed mutably below.
+        let geometry = *self.world.resource::<BoxGeometry>();
+        let material = *self.world.resource::<Material>();
+        let physics = *self.world.resource::<Physics>();
+        let clockwork = Clockwork::new(&geometry, &material, &physics);
         let mut lost = 0.0;
         let mut query = self.world.query_filtered::<(
             &mut Position,
@@ -552,10 +570,10 @@ impl Simulation {
         self.world.resource_mut::<EnergyLedger>().cooling_loss += lost;
     }
 
-    fn clockwork(&self) -> Clockwork {
+    fn clockwork(&self) -> Clockwork<'_> {
         Clockwork::new(
             self.world.resource::<BoxGeometry>(),
-            self.world.resource::<MaterialConstants>(),
+            self.world.resource::<Material>(),
             self.world.resource::<Physics>(),
         )
     }

@@ -14,8 +14,8 @@
 use bevy_ecs::prelude::*;
 
 use agglo_engine::components::{Hardness, Mass, Particle, Radius, Temperature};
-use agglo_engine::resources::{EnergyLedger, MaterialConstants, SimClock};
-use agglo_engine::scene::Physics;
+use agglo_engine::resources::{EnergyLedger, SimClock};
+use agglo_engine::scene::{Material, Physics};
 
 pub use agglo_engine::laws::cooling::{
     CoolingLaw, convective_closed_form, radiative_closed_form,
@@ -24,7 +24,7 @@ pub use agglo_engine::laws::cooling::{
 
 /// The system.
 pub fn cool_bodies(
-    material: Res<MaterialConstants>,
+    material: Res<Material>,
     options: Res<Physics>,
     clock: Res<SimClock>,
     mut bodies: Query<(&Mass, &Radius, &mut Temperature, &mut Hardness), With<Particle>>,
@@ -38,7 +38,7 @@ pub fn cool_bodies(
     for (m, b, mut t, mut h) in &mut bodies {
         let law = CoolingLaw::for_body(&material, m.0, b.0);
         let new = law.step(options.cooling, t.0, dt);
-        lost += m.0 * material.heat_capacity * (t.0 - new);
+        lost += m.0 * material.C * (t.0 - new);
         t.0 = new;
         h.0 = material.hardness(new);
     }

@@ -13,6 +13,8 @@
 //! Reads: every body, [`EnergyLedger`]. Writes: [`InvariantReport`], [`Counters`].
 
 use bevy_ecs::prelude::*;
+
+use agglo_engine::scene::Material;
 use bevy_ecs::system::SystemParam;
 use glam::DVec3;
 use schemars::JsonSchema;
@@ -21,9 +23,7 @@ use serde::{Deserialize, Serialize};
 use agglo_engine::components::{
     Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
 };
-use agglo_engine::resources::{
-    Counters, EnergyLedger, InvariantReport, MaterialConstants, SimClock, StepEvents,
-};
+use agglo_engine::resources::{Counters, EnergyLedger, InvariantReport, SimClock, StepEvents};
 pub use agglo_engine::totals::{Totals, totals};
 
 // The `diagnostics` section of a scenario: how often and how strictly to check, read by
@@ -84,7 +84,7 @@ pub struct InitialEnergies {
 
 impl FromWorld for InitialEnergies {
     fn from_world(world: &mut World) -> Self {
-        let c = world.resource::<MaterialConstants>().heat_capacity;
+        let c = world.resource::<Material>().C;
         let mut query = world.query_filtered::<(&Mass, &Velocity, &Temperature), With<Particle>>();
         let t = totals(query.iter(world).map(|(m, v, t)| (m.0, v.0, t.0)), c);
         Self {
@@ -100,7 +100,7 @@ impl FromWorld for InitialEnergies {
 #[derive(SystemParam)]
 pub struct Checks<'w, 's> {
     settings: Res<'w, Diagnostics>,
-    material: Res<'w, MaterialConstants>,
+    material: Res<'w, Material>,
     clock: Res<'w, SimClock>,
     ledger: Res<'w, EnergyLedger>,
     initial: Local<'s, InitialEnergies>,
@@ -269,7 +269,7 @@ pub fn check_step_totals(
     mut seen: Local<Vec<(Entity, Totals)>>,
 ) {
     let clock = *checks.clock;
-    let c = checks.material.heat_capacity;
+    let c = checks.material.C;
     seen.clear();
     seen.extend_from_slice(&events.touched);
     // The first record of each body is its state before the step changed it.
@@ -386,7 +386,7 @@ impl Checks<'_, '_> {
         self.record(violations);
         let now = totals(
             bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)),
-            self.material.heat_capacity,
+            self.material.C,
         );
         self.compare(&now);
     }

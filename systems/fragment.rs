@@ -124,13 +124,13 @@ pub fn fragment_bodies(
         let Ok((id, p, v, m, b, t, n)) = bodies.get(entity) else {
             continue;
         };
-        let k = piece_count(energy, b.0, material.gamma);
+        let k = piece_count(energy, b.0, material.surface_energy());
         if k < 2 || n.0 < 2.0 {
             continue;
         }
         let pieces = k.min(n.0.floor() as u64).max(2);
-        let dz = surface_energy(material.gamma, b.0, pieces);
-        let theta = t.0 - dz / (m.0 * material.heat_capacity);
+        let dz = surface_energy(material.surface_energy(), b.0, pieces);
+        let theta = t.0 - dz / (m.0 * material.C);
         let piece_mass = m.0 / pieces as f64;
         let piece_radius = material.radius_of_mass(piece_mass);
         for offset in piece_offsets(pieces as usize, piece_radius) {

@@ -28,7 +28,7 @@ use bevy_ecs::prelude::*;
 
 use agglo_engine::components::{Mass, Particle, Temperature, Velocity};
 use agglo_engine::error::SimError;
-use agglo_engine::resources::MaterialConstants;
+use agglo_engine::scene::Material;
 use agglo_engine::scene::{CoolingMethod, Core, Physics, Scene, TimeControl, event_core_needs};
 use agglo_engine::schedule::{SimBuilder, SimPlugin, Simulation, StepSystems};
 
@@ -117,10 +117,7 @@ impl SimPlugin for FragmentPlugin {
         "fragment"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        match fragmentation_off(
-            sim.resource::<MaterialConstants>(),
-            sim.resource::<Physics>(),
-        ) {
+        match fragmentation_off(sim.resource::<Material>(), sim.resource::<Physics>()) {
             Some(why) => sim.leave_out(format!("fragmentation off: {why}")),
             None => sim.add_systems(StepSystems::Fragment, fragment::fragment_bodies),
         };
@@ -128,8 +125,8 @@ impl SimPlugin for FragmentPlugin {
 }
 
 /// Why the scene has no fragmentation, if it has none.
-fn fragmentation_off(material: &MaterialConstants, physics: &Physics) -> Option<&'static str> {
-    if material.gamma == f64::INFINITY {
+fn fragmentation_off(material: &Material, physics: &Physics) -> Option<&'static str> {
+    if material.surface_energy() == f64::INFINITY {
         Some("γ = ∞ (material.gamma = null)")
     } else if !physics.fragmentation {
         Some("physics.fragmentation = false")
@@ -155,10 +152,10 @@ impl SimPlugin for CoolingPlugin {
 
 /// Why the scene schedules no cooling system, if it schedules none.
 fn no_cooling_system(sim: &SimBuilder) -> Option<&'static str> {
-    let material = sim.resource::<MaterialConstants>();
+    let material = sim.resource::<Material>();
     if sim.resource::<Physics>().cooling == CoolingMethod::Off {
         Some("cooling off: physics.cooling = \"off\"")
-    } else if material.emissivity == 0.0 && material.convection == 0.0 {
+    } else if material.epsilon == 0.0 && material.hc == 0.0 {
         Some("cooling off: ε = hc = 0 (material.epsilon, material.hc)")
     } else if sim.uses_event_core() {
         Some(
@@ -259,7 +256,7 @@ impl AddDefaultPlugins for SimBuilder {
 
 /// Totals over the bodies now in the world.
 fn initial_totals(world: &mut World) -> diagnostics::Totals {
-    let c = world.resource::<MaterialConstants>().heat_capacity;
+    let c = world.resource::<Material>().C;
     let rows: Vec<_> = world
         .query_filtered::<(&Mass, &Velocity, &Temperature), With<Particle>>()
         .iter(world)

@@ -112,7 +112,7 @@ pub fn merge_bonded(
         va.0 = (ma.0 * va.0 + mb.0 * vb.0) / m;
         ta.0 = (ma.0 * ta.0 + mb.0 * tb.0) / m;
         if relative_motion > 0.0 {
-            ta.0 += relative_motion / (m * material.heat_capacity);
+            ta.0 += relative_motion / (m * material.C);
             ledger.impact_dissipation += relative_motion;
         }
         na.0 += nb.0;

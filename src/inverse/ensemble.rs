@@ -318,13 +318,13 @@ pub fn run_sample(
         .map_err(|e| SampleFailure(e.to_string()))?;
     let bodies = sim.bodies();
     let material = sim.material();
-    let growth = Growth::of(&bodies, material.rho, material.primary_radius);
+    let growth = Growth::of(&bodies, material.rho, sim.primary().radius);
     Ok(SampleResult {
         observables: Observables::of(&growth),
         radii: if keep_radii {
             bodies
                 .iter()
-                .map(|b| b.radius / material.primary_radius)
+                .map(|b| b.radius / sim.primary().radius)
                 .collect()
         } else {
             Vec::new()

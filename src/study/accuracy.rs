@@ -417,7 +417,7 @@ pub fn measure(scenario: &Scenario, repeats: usize) -> anyhow::Result<Measuremen
         walls.push(sim.wall_seconds());
         if first.is_none() {
             let s = sim.summary();
-            let b0 = sim.material().primary_radius;
+            let b0 = sim.primary().radius;
             let bodies = sim.bodies();
             first = Some(Measurement {
                 steps: s.steps,

@@ -23,6 +23,7 @@ pub mod core;
 
 use bevy_ecs::prelude::*;
 
+use agglo_engine::cloud::PrimaryGrain;
 use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
 
@@ -33,8 +34,7 @@ use agglo_engine::components::{
     Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
 };
 use agglo_engine::resources::{
-    BoxGeometry, Contact, ContactList, Counters, MaterialConstants, SimClock, StepControl,
-    StepEvents,
+    BoxGeometry, Contact, ContactList, Counters, SimClock, StepControl, StepEvents,
 };
 use agglo_engine::totals::Totals;
 
@@ -77,7 +77,7 @@ fn horizon(now: f64) -> f64 {
 /// Build the core from the bodies in the world (at t = 0) and predict every body.
 pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
     let half_width = world.resource::<BoxGeometry>().half_width;
-    let primary = world.resource::<MaterialConstants>().primary_radius;
+    let primary = world.resource::<PrimaryGrain>().radius;
     // The grid moves with the cloud's mean velocity (see `EventCore`).
     let mut momentum = DVec3::ZERO;
     let mut mass = 0.0;
@@ -196,7 +196,7 @@ pub fn pop_due_contacts(
     candidates.sort_unstable();
     candidates.dedup_by_key(|c| (c.0, c.1));
     let clockwork = Clockwork::new(&geometry, &material, &options);
-    let heat_capacity = material.heat_capacity;
+    let heat_capacity = material.C;
     taken.clear();
     for &(_, _, sa, sb) in candidates.iter() {
         if taken.contains(&sa) || taken.contains(&sb) {

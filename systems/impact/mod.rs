@@ -5,7 +5,7 @@
 //! area, impulsive force, friction, heating and thermal softening, then either
 //! bond the pair (common velocity, marked for merging) or bounce it with e*.
 //!
-//! Reads: [`ContactList`], [`MaterialConstants`], [`ImpactModel`] (the scenario's `impact`
+//! Reads: [`ContactList`], [`Material`], [`ImpactModel`] (the scenario's `impact`
 //! section, defined in `settings.rs`).
 //! Writes: velocities, temperatures, hardness and positions (a bouncing pair that
 //! overlaps is pushed apart to touching) of the pair; [`ImpactRecords`],
@@ -17,12 +17,11 @@
 use bevy_ecs::prelude::*;
 
 use agglo_engine::params::{RunBooks, SceneConstants};
+use agglo_engine::scene::Material;
 use glam::DVec3;
 
 use agglo_engine::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
-use agglo_engine::resources::{
-    ContactList, ImpactRecord, ImpactRecords, MaterialConstants, hardness,
-};
+use agglo_engine::resources::{ContactList, ImpactRecord, ImpactRecords, hardness};
 mod settings;
 pub use settings::{
     BondTest, DurationLaw, FrictionCap, ImpactModel, PairHardness, Separation, SolverKind, WorkHeat,
@@ -75,7 +74,7 @@ pub struct PairModel {
 }
 
 impl PairModel {
-    pub fn new(material: &MaterialConstants, settings: &ImpactModel) -> Self {
+    pub fn new(material: &Material, settings: &ImpactModel) -> Self {
         Self {
             a0: settings.a0,
             af: settings.af,
@@ -84,9 +83,9 @@ impl PairModel {
             friction_scales_with_adhesion: settings.friction_scales_with_adhesion,
             mu0: material.mu0,
             alpha: material.alpha,
-            heat_capacity: material.heat_capacity,
-            h0: material.h0,
-            activation_energy: material.activation_energy,
+            heat_capacity: material.C,
+            h0: material.H0,
+            activation_energy: material.Q,
             tol: settings.tol,
             max_iterations: settings.max_iterations,
             solver: settings.solver,
