@@ -5,14 +5,17 @@
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
 
+use crate::cloud::PrimaryGrain;
 use crate::resources::{BoxGeometry, Counters, EnergyLedger, SimClock, StateChanged, StepEvents};
-use crate::scene::{Material, Physics};
+use crate::scene::{Material, Physics, TimeControl};
 
-/// The scene's constants, read only: the material, the periodic box and the physics
-/// options.
+/// The scene's constants, read only: the material and its primary grain, the periodic
+/// box, the physics options and the time control.
 #[derive(SystemParam)]
 pub struct SceneConstants<'w> {
     pub material: Res<'w, Material>,
+    pub primary: Res<'w, PrimaryGrain>,
+    pub time: Res<'w, TimeControl>,
     pub geometry: Res<'w, BoxGeometry>,
     pub options: Res<'w, Physics>,
 }

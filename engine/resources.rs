@@ -2,8 +2,7 @@
 //!
 //! - the hardness law with its overflow rule, on [`Material`] (the scene's one material,
 //!   docs/model.md §1, whose section type lives in `scene.rs`);
-//! - [`StepControl`], [`BoxGeometry`]: how the step is computed (the box is the
-//!   scenario's `box` section itself);
+//! - [`BoxGeometry`]: the periodic box (the scenario's `box` section itself);
 //! - [`SimClock`], [`Counters`], [`EnergyLedger`], [`InvariantReport`]: run state;
 //! - [`ContactList`], [`ImpactRecords`], [`NeighbourPairs`]: data handed from one
 //!   stage of the step to the next;
@@ -17,7 +16,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::laws::cooling::CoolingLaw;
-use crate::scene::{Material, Stepping, TimeControl};
+use crate::scene::Material;
 
 /// Universal gas constant R [J/(mol K)].
 pub const GAS_CONSTANT: f64 = 8.314462618;
@@ -119,53 +118,6 @@ impl BoxGeometry {
     }
 }
 
-/// How the step size is chosen (docs/model.md §4).
-#[derive(Resource, Debug, Clone, Copy, PartialEq)]
-pub enum StepControl {
-    Adaptive {
-        /// Step factor c.
-        step_factor: f64,
-        /// Δt_min [s].
-        dt_min: f64,
-        /// Δt_max [s].
-        dt_max: f64,
-        /// Neighbour-search margin [m].
-        skin: f64,
-    },
-    Fixed {
-        /// Δt [s].
-        dt: f64,
-    },
-}
-
-impl StepControl {
-    /// The step control of the `time` section for primaries of radius `b0` [m] (the
-    /// skin is given in units of b0).
-    pub fn from_time(time: &TimeControl, b0: f64) -> Self {
-        match time.stepping {
-            Stepping::Adaptive {
-                step_factor,
-                dt_min,
-                dt_max,
-                skin,
-            } => StepControl::Adaptive {
-                step_factor,
-                dt_min,
-                dt_max,
-                skin: skin * b0,
-            },
-            Stepping::Fixed { dt } => StepControl::Fixed { dt },
-        }
-    }
-    /// Search margin beyond touching [m]: the skin, or 0 for fixed steps.
-    pub fn skin(&self) -> f64 {
-        match *self {
-            StepControl::Adaptive { skin, .. } => skin,
-            StepControl::Fixed { .. } => 0.0,
-        }
-    }
-}
-
 /// Relative gap tolerance: g ≤ tol·(b_i + b_j) counts as touching (docs/model.md §4).
 pub const CONTACT_TOLERANCE: f64 = 1e-9;
 
@@ -174,8 +126,6 @@ pub const CONTACT_TOLERANCE: f64 = 1e-9;
 pub struct SimClock {
     /// Simulated time t [s] at the start of the current step.
     pub time: f64,
-    /// End time T [s].
-    pub end: f64,
     /// Δt [s] of the current step (set by the time-step system).
     pub dt: f64,
     /// Steps completed.

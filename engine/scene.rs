@@ -204,6 +204,25 @@ pub enum Stepping {
     Fixed { dt: f64 },
 }
 
+impl Stepping {
+    /// Neighbour-search margin beyond touching [m] for primaries of radius `b0` [m]:
+    /// skin · b0 when adaptive, 0 for fixed steps.
+    pub fn search_skin(&self, b0: f64) -> f64 {
+        match *self {
+            Stepping::Adaptive { skin, .. } => skin * b0,
+            Stepping::Fixed { .. } => 0.0,
+        }
+    }
+
+    /// The longest step [s]: Δt_max when adaptive, the fixed Δt otherwise.
+    pub fn dt_max(&self) -> f64 {
+        match *self {
+            Stepping::Adaptive { dt_max, .. } => dt_max,
+            Stepping::Fixed { dt } => dt,
+        }
+    }
+}
+
 fn default_dt_min() -> f64 {
     1e-8
 }

@@ -147,7 +147,6 @@ impl SimBuilder {
         let mut world = World::new();
         let material = *scene.material();
         let primary = PrimaryGrain::of(scene.cloud(), scene.domain(), &material);
-        let b0 = primary.radius;
         let mut rng = SimRng::seeded(scene.seed());
         let cloud = generate_cloud(
             scene.cloud(),
@@ -172,14 +171,10 @@ impl SimBuilder {
         world.insert_resource(material);
         world.insert_resource(primary);
         world.insert_resource(*scene.domain());
-        world.insert_resource(StepControl::from_time(time, b0));
         world.insert_resource(*physics);
         world.insert_resource(time.clone());
         scene.insert_settings(&mut world);
-        world.insert_resource(SimClock {
-            end: time.end,
-            ..Default::default()
-        });
+        world.init_resource::<SimClock>();
         world.insert_resource(rng);
         world.insert_resource(IdAllocator { next: next_id });
         world.insert_resource(InvariantReport {
@@ -392,12 +387,16 @@ fn short_name(full: &str) -> String {
 }
 
 /// Closes the step: t ← t + Δt (exactly T on the last step), L ← L + 1.
-fn advance_clock(mut clock: ResMut<SimClock>, mut events: ResMut<StepEvents>) {
+fn advance_clock(
+    mut clock: ResMut<SimClock>,
+    time: Res<TimeControl>,
+    mut events: ResMut<StepEvents>,
+) {
     events.clear();
     let next = clock.time + clock.dt;
     // Land exactly on T when the step was cut to the remaining time.
-    clock.time = if clock.end - next <= 1e-12 * clock.end {
-        clock.end.max(next)
+    clock.time = if time.end - next <= 1e-12 * time.end {
+        time.end.max(next)
     } else {
         next
     };
@@ -481,7 +480,7 @@ impl Simulation {
     /// True once t = T.
     pub fn is_finished(&self) -> bool {
         let c = self.clock();
-        c.time >= c.end
+        c.time >= self.world.resource::<TimeControl>().end
     }
 
     /// Advance one step.
@@ -492,7 +491,7 @@ impl Simulation {
             return Err(SimError::StepLimit {
                 step: clock.step,
                 time: clock.time,
-                end: clock.end,
+                end: self.world.resource::<TimeControl>().end,
                 max_steps: limit,
             });
         }

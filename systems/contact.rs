@@ -9,7 +9,8 @@
 //! step). With the papers' `nearest_neighbour` rule a pair counts only if one body
 //! is the other's nearest neighbour.
 //!
-//! Reads: positions, velocities, radii, ids; [`StepControl`], [`Physics`](agglo_engine::scene::Physics).
+//! Reads: positions, velocities, radii, ids; the scene's `time.stepping` and `physics`
+//! sections, the primary radius (for the search skin).
 //! Writes: [`ContactList`], [`NeighbourTable`] (reused by the time-step system when
 //! nothing changed), [`Counters`] (deferred contacts, overlap violations).
 
@@ -20,7 +21,8 @@ use glam::DVec3;
 
 use super::grid::{NearPair, NeighbourGrid};
 use agglo_engine::components::{Mass, Particle, ParticleId, Position, Radius, Velocity};
-use agglo_engine::resources::{BoxGeometry, CONTACT_TOLERANCE, Contact, ContactList, StepControl};
+use agglo_engine::resources::{BoxGeometry, CONTACT_TOLERANCE, Contact, ContactList};
+use agglo_engine::scene::Stepping;
 use agglo_engine::scene::{ContactRule, ImpactsPerStep};
 
 /// The bodies of this step in stable-id order, plus their near pairs.
@@ -199,9 +201,10 @@ impl NeighbourTable {
 }
 
 /// Margin of the neighbour search [m]: the skin, and never less than the contact tolerance.
-pub fn search_margin(control: &StepControl, table_max_radius: f64) -> f64 {
-    control
-        .skin()
+/// `b0` [m] is the primary radius (the skin is given in its units).
+pub fn search_margin(stepping: &Stepping, b0: f64, table_max_radius: f64) -> f64 {
+    stepping
+        .search_skin(b0)
         .max(2.0 * CONTACT_TOLERANCE * table_max_radius)
 }
 
@@ -220,14 +223,17 @@ pub struct ContactScratch {
 pub fn detect_contacts(
     bodies: BodyQuery,
     scene: SceneConstants,
-    control: Res<StepControl>,
     mut table: ResMut<NeighbourTable>,
     mut scratch: ResMut<ContactScratch>,
     mut contacts: ResMut<ContactList>,
     books: RunBooks,
 ) {
     let SceneConstants {
-        geometry, options, ..
+        geometry,
+        options,
+        time,
+        primary,
+        ..
     } = scene;
     let RunBooks {
         mut clock,
@@ -238,7 +244,7 @@ pub fn detect_contacts(
     changed.0 = false;
     if clock.bodies_reshaped || !table.try_reuse(&bodies, &geometry) {
         let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
-        let margin = search_margin(&control, max_radius);
+        let margin = search_margin(&time.stepping, primary.radius, max_radius);
         table.rebuild(&bodies, &geometry, margin);
     }
     contacts.contacts.clear();
@@ -270,7 +276,7 @@ pub fn detect_contacts(
     // means a contact was missed. Not flagged: steps clamped at Δt_min, the step after
     // merging, fragmentation or a push-apart (a grown body, a placed fragment or a pushed
     // body may overlap a neighbour), and overlaps that already existed at the previous step.
-    let check_overlaps = matches!(*control, StepControl::Adaptive { step_factor, .. } if step_factor <= 1.0)
+    let check_overlaps = matches!(time.stepping, Stepping::Adaptive { step_factor, .. } if step_factor <= 1.0)
         && !clock.clamped_at_min
         && clock.step > 0
         && !clock.bodies_reshaped

@@ -14,7 +14,7 @@
 
 use bevy_ecs::prelude::*;
 
-use agglo_engine::scene::Material;
+use agglo_engine::scene::{Material, TimeControl};
 use bevy_ecs::system::SystemParam;
 use glam::DVec3;
 use schemars::JsonSchema;
@@ -94,7 +94,7 @@ impl FromWorld for InitialEnergies {
     }
 }
 
-/// What a check reads (its settings, the material, the clock, the ledger and the
+/// What a check reads (its settings, the material, the clock and end time, the ledger and the
 /// energies at t = 0) and where it records what it finds (the report and the violation
 /// counter): one system parameter for both check systems.
 #[derive(SystemParam)]
@@ -102,6 +102,7 @@ pub struct Checks<'w, 's> {
     settings: Res<'w, Diagnostics>,
     material: Res<'w, Material>,
     clock: Res<'w, SimClock>,
+    time: Res<'w, TimeControl>,
     ledger: Res<'w, EnergyLedger>,
     initial: Local<'s, InitialEnergies>,
     report: ResMut<'w, InvariantReport>,
@@ -112,7 +113,8 @@ pub struct Checks<'w, 's> {
 pub fn check_invariants(mut checks: Checks, bodies: TotalsQuery) {
     let clock = *checks.clock;
     // clock.step is the index of the step being finished; check after every `every`-th.
-    if !(clock.step + 1).is_multiple_of(checks.settings.every) && clock.time + clock.dt < clock.end
+    if !(clock.step + 1).is_multiple_of(checks.settings.every)
+        && clock.time + clock.dt < checks.time.end
     {
         return;
     }
@@ -298,7 +300,7 @@ pub fn check_step_totals(
         running.add(before, -1.0);
     }
     checks.record(violations);
-    let last = clock.time + clock.dt >= clock.end;
+    let last = clock.time + clock.dt >= checks.time.end;
     if (clock.step + 1).is_multiple_of(running.full_every) || last {
         // Full recomputation: also catches a change no system reported.
         checks.check_now(&bodies);

@@ -57,6 +57,7 @@ pub fn merge_bonded(
         material,
         geometry,
         options,
+        ..
     } = scene;
     let RunBooks {
         mut clock,

@@ -12,14 +12,16 @@
 //! approaching pair deferred to the next step), v_max the largest speed relative to
 //! the mass-weighted mean velocity. Fixed: Δt as given. Both end exactly on T.
 //!
-//! Reads: [`NeighbourTable`], [`StepControl`], [`StateChanged`]. Writes: [`SimClock`]
+//! Reads: [`NeighbourTable`], the scene's `time` section, [`StateChanged`]. Writes: [`SimClock`]
 //! (dt, clamped flag), [`Counters`] (clamped steps).
 
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 
 use super::contact::{BodyQuery, NeighbourTable, search_margin};
-use agglo_engine::resources::{BoxGeometry, Counters, SimClock, StateChanged, StepControl};
+use agglo_engine::params::SceneConstants;
+use agglo_engine::resources::{Counters, SimClock, StateChanged};
+use agglo_engine::scene::Stepping;
 
 /// Smallest t ≥ 0 with |d + u t| = s, for separation d = r_j − r_i, relative velocity
 /// u = v_j − v_i and contact distance s = b_i + b_j; `None` if the pair never touches.
@@ -44,26 +46,36 @@ pub fn time_to_contact(d: DVec3, u: DVec3, s: f64) -> Option<f64> {
 /// The system.
 pub fn choose_time_step(
     bodies: BodyQuery,
-    geometry: Res<BoxGeometry>,
-    control: Res<StepControl>,
+    scene: SceneConstants,
     changed: Res<StateChanged>,
     mut table: ResMut<NeighbourTable>,
     mut clock: ResMut<SimClock>,
     mut counters: ResMut<Counters>,
 ) {
-    let remaining = (clock.end - clock.time).max(0.0);
+    let SceneConstants {
+        geometry,
+        time,
+        primary,
+        ..
+    } = scene;
+    let remaining = (time.end - clock.time).max(0.0);
     clock.clamped_at_min = false;
-    let dt = match *control {
-        StepControl::Fixed { dt } => dt,
-        StepControl::Adaptive {
+    let dt = match time.stepping {
+        Stepping::Fixed { dt } => dt,
+        Stepping::Adaptive {
             step_factor,
             dt_min,
             dt_max,
-            skin,
+            ..
         } => {
+            let skin = time.stepping.search_skin(primary.radius);
             if clock.bodies_reshaped {
                 let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
-                table.rebuild(&bodies, &geometry, search_margin(&control, max_radius));
+                table.rebuild(
+                    &bodies,
+                    &geometry,
+                    search_margin(&time.stepping, primary.radius, max_radius),
+                );
             } else if changed.0 {
                 table.refresh(&bodies, &geometry);
             }

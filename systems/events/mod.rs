@@ -25,6 +25,7 @@ use bevy_ecs::prelude::*;
 
 use agglo_engine::cloud::PrimaryGrain;
 use agglo_engine::params::{RunBooks, SceneConstants};
+use agglo_engine::scene::TimeControl;
 use glam::DVec3;
 
 use self::calendar::EventKind;
@@ -33,9 +34,7 @@ use agglo_engine::bodies::{Clockwork, LazyBody, bring_to};
 use agglo_engine::components::{
     Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
 };
-use agglo_engine::resources::{
-    BoxGeometry, Contact, ContactList, Counters, SimClock, StepControl, StepEvents,
-};
+use agglo_engine::resources::{BoxGeometry, Contact, ContactList, Counters, SimClock, StepEvents};
 use agglo_engine::totals::Totals;
 
 /// Events closer than this (relative to t) count as simultaneous.
@@ -145,6 +144,7 @@ pub fn pop_due_contacts(
         material,
         geometry,
         options,
+        ..
     } = scene;
     let RunBooks {
         clock,
@@ -346,38 +346,31 @@ fn settle(core: &mut EventCore, now: f64, limit: f64) {
 }
 
 /// Δt to the calendar's next event, bounded by Δt_max and the time left.
-fn step_to_next_event(core: &EventCore, clock: &SimClock, dt_max: f64) -> f64 {
+fn step_to_next_event(core: &EventCore, clock: &SimClock, end: f64, dt_max: f64) -> f64 {
     let now = clock.time;
-    let remaining = (clock.end - now).max(0.0);
+    let remaining = (end - now).max(0.0);
     let next = core.peek().map_or(f64::INFINITY, |(_, e)| e.time);
     (next - now).max(0.0).min(dt_max).min(remaining)
-}
-
-fn dt_max_of(control: &StepControl) -> f64 {
-    match *control {
-        StepControl::Adaptive { dt_max, .. } => dt_max,
-        StepControl::Fixed { dt } => dt,
-    }
 }
 
 /// Stage `TimeStep`: re-predict what changed and choose Δt to the next contact.
 pub fn schedule_next_step(
     mut core: ResMut<EventCore>,
     mut clock: ResMut<SimClock>,
-    control: Res<StepControl>,
+    time: Res<TimeControl>,
     bodies: ReadQuery,
     mut events: ResMut<StepEvents>,
 ) {
     let now = clock.time;
     file_changes(&mut core, &mut events, &bodies, now);
-    let dt_max = dt_max_of(&control);
-    let limit = (now + dt_max).min(clock.end);
+    let dt_max = time.stepping.dt_max();
+    let limit = (now + dt_max).min(time.end);
     settle(&mut core, now, limit);
     if core.due_for_renumbering() {
         core.renumber(now);
     }
     clock.clamped_at_min = false;
-    clock.dt = step_to_next_event(&core, &clock, dt_max);
+    clock.dt = step_to_next_event(&core, &clock, time.end, dt_max);
 }
 
 /// Count the core's missed contacts into the run's counters (stage `Diagnostics`).
