@@ -11,8 +11,7 @@ use rand::{Rng, RngExt};
 
 use crate::components::BodyState;
 use crate::error::SimError;
-use crate::resources::BoxGeometry;
-use crate::scene::Material;
+use crate::scene::{BoxGeometry, Material};
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};

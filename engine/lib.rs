@@ -13,9 +13,9 @@
 //! - [`schedule`]: the stages of a step ([`schedule::StepSystems`], written once), the
 //!   plugin trait ([`schedule::SimPlugin`]), the builder and the [`schedule::Simulation`]
 //!   that steps the world;
-//! - [`scene`], [`cloud`], [`error`]: the [`scene::Scene`] a run is built from and the
-//!   sections of it the engine owns (material, time, physics), the initial cloud and
-//!   its section, and the typed errors;
+//! - [`setup`], [`scene`], [`cloud`], [`error`]: the [`setup::Scene`] a run is built
+//!   from, the sections of it the engine owns (box, material, time, physics), the initial
+//!   cloud and its section, and the typed errors;
 //! - [`params`]: system parameters grouping what a stage reads and writes together;
 //! - [`observables`], [`totals`]: what a run measures (docs/model.md §10, §11).
 //!
@@ -32,6 +32,7 @@ pub mod params;
 pub mod resources;
 pub mod scene;
 pub mod schedule;
+pub mod setup;
 pub mod totals;
 
 // Plugins write systems against the same versions the engine uses.
@@ -48,6 +49,6 @@ pub mod prelude {
     pub use crate::params::{RunBooks, SceneConstants};
     pub use crate::resources::{Counters, EnergyLedger, SimClock};
     pub use crate::scene::Material;
-    pub use crate::scene::Scene;
     pub use crate::schedule::{SimBuilder, SimPlugin, Simulation, StepSystems};
+    pub use crate::setup::Scene;
 }

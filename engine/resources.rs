@@ -12,44 +12,14 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::laws::cooling::CoolingLaw;
 use crate::scene::Material;
 
-/// Universal gas constant R [J/(mol K)].
-pub const GAS_CONSTANT: f64 = 8.314462618;
-/// Stefan–Boltzmann constant B [W/(m² K⁴)].
-pub const STEFAN_BOLTZMANN: f64 = 5.670374419e-8;
-/// Exponents Q/(Rθ) above this give H = +∞ (exp(709) overflows f64).
-pub const HARDNESS_EXPONENT_LIMIT: f64 = 700.0;
-
-/// The scene's material (the scenario's `material` section, read as it is) and what it
-/// implies: the hardness law with its overflow rule, the radius of a mass, whether it
-/// cools, its surface energy with `null` read as ∞.
-impl Material {
-    /// Hardness H = H0 · exp(Q / (R θ)) [Pa]; +∞ when the exponent exceeds 700
-    /// (docs/model.md §1, "hardness overflow"). Never NaN for θ > 0.
-    pub fn hardness(&self, theta: f64) -> f64 {
-        hardness(self.H0, self.Q, theta)
-    }
-
-    /// Radius of a body of mass `m` [kg]: (3 m / (4 π ρ))^(1/3).
-    pub fn radius_of_mass(&self, m: f64) -> f64 {
-        (3.0 * m / (4.0 * std::f64::consts::PI * self.rho)).cbrt()
-    }
-
-    /// True when cooling would change anything (ε > 0 or hc > 0).
-    pub fn cools(&self) -> bool {
-        self.epsilon > 0.0 || self.hc > 0.0
-    }
-
-    /// Surface energy γ [J/m²]; +∞ (no fragmentation) when the scenario gives `null`.
-    pub fn surface_energy(&self) -> f64 {
-        self.gamma.unwrap_or(f64::INFINITY)
-    }
-}
+pub use crate::laws::cooling::STEFAN_BOLTZMANN;
+pub use crate::laws::hardness::{GAS_CONSTANT, HARDNESS_EXPONENT_LIMIT, hardness};
+pub use crate::scene::BoxGeometry;
 
 /// The cooling law of a body of the scene's material (docs/model.md §8).
 impl CoolingLaw {
@@ -63,58 +33,6 @@ impl CoolingLaw {
             theta_gas: material.theta0,
             theta_far: material.theta_s,
         }
-    }
-}
-
-/// H0 · exp(Q / (R θ)) with the overflow rule of docs/model.md §1.
-pub fn hardness(h0: f64, q: f64, theta: f64) -> f64 {
-    if q == 0.0 {
-        return h0;
-    }
-    let exponent = q / (GAS_CONSTANT * theta);
-    if exponent > HARDNESS_EXPONENT_LIMIT || exponent.is_nan() {
-        f64::INFINITY
-    } else {
-        h0 * exponent.exp()
-    }
-}
-
-/// The periodic cube [−D, D]³.
-#[derive(Resource, Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
-// The `box` section of a scenario, read by every stage as it is; named `Domain` in the
-// schema and in parse errors.
-#[serde(deny_unknown_fields, rename = "Domain")]
-pub struct BoxGeometry {
-    /// Half-width D [m] of the periodic cube [−D, D]³.
-    pub half_width: f64,
-}
-
-impl BoxGeometry {
-    /// Side length 2D [m].
-    pub fn side(&self) -> f64 {
-        2.0 * self.half_width
-    }
-    /// Minimum-image displacement of `d` (each component in [−D, D]).
-    #[inline]
-    pub fn min_image(&self, d: DVec3) -> DVec3 {
-        let l = self.side();
-        d - l * (d / l).round()
-    }
-    /// Map a position back into [−D, D) (periodic re-entry).
-    #[inline]
-    pub fn wrap(&self, r: DVec3) -> DVec3 {
-        let l = self.side();
-        let mut w = r - l * ((r + DVec3::splat(self.half_width)) / l).floor();
-        // Guard the rounding edge where r + D is a hair below a multiple of L.
-        for k in 0..3 {
-            if w[k] >= self.half_width {
-                w[k] -= l;
-            }
-            if w[k] < -self.half_width {
-                w[k] = -self.half_width;
-            }
-        }
-        w
     }
 }
 

@@ -1,48 +1,20 @@
-//! The scene as the engine sees it: the [`Scene`] trait a run description implements,
-//! and the sections of it the engine itself owns because every stage shares them —
-//! `material` ([`Material`]), `time` ([`TimeControl`]) and `physics` ([`Physics`]);
-//! the box is [`crate::resources::BoxGeometry`] and the cloud
-//! [`crate::cloud::Cloud`]. Each section is one type, deserialised from the scenario
+//! The sections of a scene the engine itself owns because every stage shares them —
+//! `box` ([`BoxGeometry`]), `material` ([`Material`]), `time` ([`TimeControl`]) and
+//! `physics` ([`Physics`]); the cloud is [`crate::cloud::Cloud`], and a whole run
+//! description is a [`crate::setup::Scene`]. Each section is one type, deserialised from the scenario
 //! file and inserted into the world as it is: a system reads the section, never a copy.
 //! The sections of the other concerns live with them (`impact` in the impact plugin,
 //! `diagnostics` in the diagnostics plugin, `output` with the drivers) and reach the
-//! world through [`Scene::insert_settings`]. Symbols follow docs/model.md §1; all
+//! world through [`crate::setup::Scene::insert_settings`]. Symbols follow docs/model.md §1; all
 //! values SI.
 
 use bevy_ecs::prelude::*;
+use glam::DVec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::cloud::Cloud;
-use crate::error::ScenarioError;
 pub use crate::laws::cooling::CoolingMethod;
-use crate::resources::BoxGeometry;
-
-/// A run's description, as the engine needs it to build a world: `agglo`'s `Scenario`
-/// is one. The engine reads its own sections through the accessors; every other
-/// section the description holds goes into the world through
-/// [`Scene::insert_settings`], where the plugin that owns it reads it.
-pub trait Scene {
-    /// Short name, used in summaries and recordings.
-    fn name(&self) -> &str;
-    /// Seed of the scene's single random generator.
-    fn seed(&self) -> u64;
-    /// The periodic box (`box`).
-    fn domain(&self) -> &BoxGeometry;
-    /// The initial cloud (`cloud`).
-    fn cloud(&self) -> &Cloud;
-    /// The material (`material`).
-    fn material(&self) -> &Material;
-    /// End time and step control (`time`).
-    fn time(&self) -> &TimeControl;
-    /// Which physics runs (`physics`).
-    fn physics(&self) -> &Physics;
-    /// Check every field of the description; each problem names its field path.
-    fn validate(&self) -> Result<(), ScenarioError>;
-    /// Insert the sections the engine does not own as resources (e.g. `impact`,
-    /// `diagnostics`), and anything the drivers want to find in the world.
-    fn insert_settings(&self, world: &mut World);
-}
+use crate::laws::hardness::hardness;
 
 /// Why a scene with these time and physics sections cannot run on the event core, if
 /// it cannot (docs/model.md §4): the event core needs exact contact times and lazy
@@ -135,6 +107,71 @@ pub struct Material {
     /// Far-field radiation temperature θs [K].
     #[serde(default)]
     pub theta_s: f64,
+}
+
+/// The scene's material (the scenario's `material` section, read as it is) and what it
+/// implies: the hardness law with its overflow rule, the radius of a mass, whether it
+/// cools, its surface energy with `null` read as ∞.
+impl Material {
+    /// Hardness H = H0 · exp(Q / (R θ)) [Pa]; +∞ when the exponent exceeds 700
+    /// (docs/model.md §1, "hardness overflow"). Never NaN for θ > 0.
+    pub fn hardness(&self, theta: f64) -> f64 {
+        hardness(self.H0, self.Q, theta)
+    }
+
+    /// Radius of a body of mass `m` [kg]: (3 m / (4 π ρ))^(1/3).
+    pub fn radius_of_mass(&self, m: f64) -> f64 {
+        (3.0 * m / (4.0 * std::f64::consts::PI * self.rho)).cbrt()
+    }
+
+    /// True when cooling would change anything (ε > 0 or hc > 0).
+    pub fn cools(&self) -> bool {
+        self.epsilon > 0.0 || self.hc > 0.0
+    }
+
+    /// Surface energy γ [J/m²]; +∞ (no fragmentation) when the scenario gives `null`.
+    pub fn surface_energy(&self) -> f64 {
+        self.gamma.unwrap_or(f64::INFINITY)
+    }
+}
+
+/// The periodic cube [−D, D]³.
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+// The `box` section of a scenario, read by every stage as it is; named `Domain` in the
+// schema and in parse errors.
+#[serde(deny_unknown_fields, rename = "Domain")]
+pub struct BoxGeometry {
+    /// Half-width D [m] of the periodic cube [−D, D]³.
+    pub half_width: f64,
+}
+
+impl BoxGeometry {
+    /// Side length 2D [m].
+    pub fn side(&self) -> f64 {
+        2.0 * self.half_width
+    }
+    /// Minimum-image displacement of `d` (each component in [−D, D]).
+    #[inline]
+    pub fn min_image(&self, d: DVec3) -> DVec3 {
+        let l = self.side();
+        d - l * (d / l).round()
+    }
+    /// Map a position back into [−D, D) (periodic re-entry).
+    #[inline]
+    pub fn wrap(&self, r: DVec3) -> DVec3 {
+        let l = self.side();
+        let mut w = r - l * ((r + DVec3::splat(self.half_width)) / l).floor();
+        // Guard the rounding edge where r + D is a hair below a multiple of L.
+        for k in 0..3 {
+            if w[k] >= self.half_width {
+                w[k] -= l;
+            }
+            if w[k] < -self.half_width {
+                w[k] = -self.half_width;
+            }
+        }
+        w
+    }
 }
 
 /// End time and step control (docs/model.md §4).

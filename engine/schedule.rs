@@ -25,7 +25,8 @@ use crate::components::{
 };
 use crate::error::SimError;
 use crate::resources::*;
-use crate::scene::{Material, Physics, Scene, TimeControl, uses_event_core};
+use crate::scene::{Material, Physics, TimeControl, uses_event_core};
+use crate::setup::Scene;
 use crate::totals::totals;
 
 /// The schedule that advances the world by one step.

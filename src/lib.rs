@@ -34,7 +34,8 @@ pub mod study;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{
-    bodies, cloud, components, error, laws, observables, params, resources, scene, schedule, totals,
+    bodies, cloud, components, error, laws, observables, params, resources, scene, schedule, setup,
+    totals,
 };
 /// The built-in physics plugins (the `agglo-systems` crate).
 pub use agglo_systems as systems;

@@ -24,10 +24,11 @@ pub use crate::record::Recording;
 use crate::schedule::{Pipeline, Simulation};
 pub use agglo_engine::cloud::{Cloud, PlacedBody, VelocityDistribution};
 pub use agglo_engine::resources::BoxGeometry as Domain;
+use agglo_engine::scene::event_core_needs;
 pub use agglo_engine::scene::{
     ContactRule, CoolingMethod, Core, ImpactsPerStep, Material, Physics, Stepping, TimeControl,
 };
-use agglo_engine::scene::{Scene, event_core_needs};
+use agglo_engine::setup::Scene;
 use agglo_systems::DefaultPlugins;
 pub use agglo_systems::diagnostics::Diagnostics;
 pub use agglo_systems::impact::{

@@ -19,8 +19,8 @@ use bevy_ecs::prelude::*;
 use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
 
-use super::grid::{NearPair, NeighbourGrid};
 use agglo_engine::components::{Mass, Particle, ParticleId, Position, Radius, Velocity};
+use agglo_engine::laws::grid::{NearPair, NeighbourGrid};
 use agglo_engine::resources::{BoxGeometry, CONTACT_TOLERANCE, Contact, ContactList};
 use agglo_engine::scene::Stepping;
 use agglo_engine::scene::{ContactRule, ImpactsPerStep};

@@ -19,7 +19,6 @@ pub mod diagnostics;
 pub mod drift;
 pub mod events;
 pub mod fragment;
-pub mod grid;
 pub mod impact;
 pub mod merge;
 pub mod time_step;
@@ -29,8 +28,9 @@ use bevy_ecs::prelude::*;
 use agglo_engine::components::{Mass, Particle, Temperature, Velocity};
 use agglo_engine::error::SimError;
 use agglo_engine::scene::Material;
-use agglo_engine::scene::{CoolingMethod, Core, Physics, Scene, TimeControl, event_core_needs};
+use agglo_engine::scene::{CoolingMethod, Core, Physics, TimeControl, event_core_needs};
 use agglo_engine::schedule::{SimBuilder, SimPlugin, Simulation, StepSystems};
+use agglo_engine::setup::Scene;
 
 /// Contact detection (stage 1) and step-size selection (stage 5): the event core
 /// when the scene allows it (docs/model.md §4), the stepped core otherwise.

@@ -57,6 +57,9 @@
 //! [`radiative_closed_form_with_far_field`] (θs > 0), and [`convective_closed_form`] (ε = 0)
 //! are exact and serve the tests here and elsewhere.
 
+/// Stefan–Boltzmann constant B [W/(m² K⁴)].
+pub const STEFAN_BOLTZMANN: f64 = 5.670374419e-8;
+
 // How temperatures are advanced between impacts (docs/model.md §8): the `physics.cooling`
 // option (no doc comment: the schema carries the variants' own).
 #[derive(

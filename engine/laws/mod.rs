@@ -1,4 +1,14 @@
 //! The laws: pure numerics with no ECS types, unit-tested on their own. The engine and
 //! the built-in systems call them; so can any extension or study.
+//!
+//! - [`hardness`]: the Arrhenius hardness and its overflow rule (docs/model.md §1);
+//! - [`contact_time`]: when two ballistic spheres touch (§4);
+//! - [`impact`]: the pair's impact/heat fixed point, its solve and closed forms (§5, §14);
+//! - [`grid`]: the periodic cell grid that finds near pairs, and the periodic images (§4, §9);
+//! - [`cooling`]: the cooling law, its integrators and closed forms (§8).
 
+pub mod contact_time;
 pub mod cooling;
+pub mod grid;
+pub mod hardness;
+pub mod impact;

@@ -13,8 +13,8 @@ use glam::DVec3;
 
 use super::calendar::{Calendar, Event, EventKind, permute_in_place};
 use super::cells::{CellGrid, Partner, round_fast};
-use crate::grid::IMAGES;
-use crate::time_step::time_to_contact;
+use agglo_engine::laws::contact_time::time_to_contact;
+use agglo_engine::laws::grid::IMAGES;
 use agglo_engine::resources::BoxGeometry;
 
 const NONE: u32 = u32::MAX;

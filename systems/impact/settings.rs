@@ -7,6 +7,9 @@ use bevy_ecs::prelude::*;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+pub use agglo_engine::laws::impact::{
+    BondTest, DurationLaw, FrictionCap, PairHardness, Separation, SolverKind, WorkHeat,
+};
 use agglo_engine::scene::is_default;
 
 /// The impact/heat solve (docs/model.md §5).
@@ -62,65 +65,6 @@ pub struct ImpactModel {
     pub work_heat: WorkHeat,
 }
 
-/// How often the dissipated energy heats the pair (docs/model.md §5.1 step 6).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum WorkHeat {
-    /// W once, split equally (P02 (14)–(17)).
-    #[default]
-    Once,
-    /// W twice: δK plus the deformation work δW of P04 (4.7)–(4.9), (6.10).
-    Twice,
-}
-
-/// Which hardness a pair bonds against (docs/model.md §5.1 step 7).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum PairHardness {
-    /// min(H_i, H_j): the softer body governs (P04, footnote to (3.1) and §6(b)).
-    #[default]
-    Min,
-    /// 2 H_i H_j / (H_i + H_j).
-    Harmonic,
-    /// (H_i + H_j) / 2.
-    Arithmetic,
-    /// max(H_i, H_j): both surfaces must yield.
-    Max,
-}
-
-/// Whether the tangential (friction) impulse is capped (docs/model.md §5.1 step 5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum FrictionCap {
-    /// Capped at the impulse m_red |v_ti − v_tj| that stops the sliding.
-    #[default]
-    Sticking,
-    /// The papers' uncapped impulse μ Ī δτ (P04 (4.17), P02 (7)); may create energy.
-    None,
-}
-
-/// When a pair bonds (docs/model.md §5.3).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum BondTest {
-    /// Only when the fixed point itself is e* = 0.
-    #[default]
-    FixedPoint,
-    /// P02 (20): when any iterate of the papers' iteration from e0 = 0 reaches P ≥ 2H.
-    AnyIterate,
-}
-
-/// How an overlapping bouncing pair is separated (docs/model.md §5.3).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum Separation {
-    /// Along n̂ to touching, each body in inverse proportion to its mass.
-    #[default]
-    Normal,
-    /// P02 (8): r_i += b_i (1 − δ) v_i/|v_i|, and the same for j.
-    Velocities,
-}
-
 fn default_solver_tol() -> f64 {
     1e-12
 }
@@ -146,31 +90,4 @@ impl Default for ImpactModel {
             work_heat: WorkHeat::Once,
         }
     }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum DurationLaw {
-    /// δτ = (1 + e) β min(b) / ((v_in − v_jn)/2)  (P04 (4.10)).
-    #[default]
-    P04,
-    /// δτ = 2 β min(b) / ((1 + e)|v_in − v_jn|)  (P02 (12)).
-    P02,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum SolverKind {
-    /// The papers' fixed-point iteration, with a bracketed fallback that cannot fail.
-    #[default]
-    Safeguarded,
-    /// The papers' fixed-point iteration alone (for stability studies).
-    Plain,
-    /// Reading: the closed form's smaller root as the answer, no iteration — the
-    /// quadratic of docs/model.md §5.2 with the pre-impact hardness (exact without
-    /// softening).
-    ClosedForm,
-    /// Reading: the same with P04 (4.14)'s coefficient c1 as printed, which carries a
-    /// spurious λ (docs/model.md §14); `p04` duration law only.
-    ClosedFormPrinted,
 }

@@ -267,7 +267,7 @@ impl NeighbourGrid {
 /// The 27 lattice translations (in box sides) of a partner's nearest periodic images.
 /// Two bodies together hold at most the whole volume fraction (< 0.39), so b_i + b_j
 /// stays below one box side and images further away can never be in reach.
-pub(crate) const IMAGES: [DVec3; 27] = {
+pub const IMAGES: [DVec3; 27] = {
     let mut images = [DVec3::ZERO; 27];
     let mut k = 0;
     while k < 27 {
