@@ -1,11 +1,11 @@
 //! Scene-wide constants and run state, held as ECS resources.
 //!
-//! - the hardness law with its overflow rule, on [`Material`] (the scene's one material,
-//!   docs/model.md §1, whose section type lives in `scene.rs`);
+//! - the cooling law of a body of the scene's [`Material`] ([`CoolingLaw::for_body`]);
+//!   the hardness law and its constants are re-exported from `laws/`;
 //! - [`BoxGeometry`]: the periodic box (the scenario's `box` section itself);
 //! - [`SimClock`], [`Counters`], [`EnergyLedger`], [`InvariantReport`]: run state;
-//! - [`ContactList`], [`ImpactRecords`], [`NeighbourPairs`]: data handed from one
-//!   stage of the step to the next;
+//! - [`ContactList`], [`ImpactRecords`], [`StepEvents`]: data handed from one stage of
+//!   the step to the next;
 //! - [`SimRng`]: the single seeded generator of the scene.
 
 use bevy_ecs::prelude::*;

@@ -6,7 +6,7 @@
 //! mean motion and no body was added or removed — and picks this step's
 //! contacts: touching (g ≤ tol·(b_i + b_j)) and approaching (w > 0) pairs, deepest
 //! first, ties by ids, at most one impact per body per step (the rest are met next
-//! step). With the papers' `nearest_neighbour` rule a pair counts only if one body
+//! step) unless `physics.impacts_per_step = "every_contact"`. With the papers' `nearest_neighbour` rule a pair counts only if one body
 //! is the other's nearest neighbour.
 //!
 //! Reads: positions, velocities, radii, ids; the scene's `time.stepping` and `physics`

@@ -1,13 +1,14 @@
 //! Stage 6 — cooling between impacts on the stepped core (docs/model.md §8, P04
 //! stage II (6.19)–(6.21)). The law and its integrators live in `engine/laws/cooling.rs`; the
 //! event core cools each body over its whole interval with [`CoolingLaw::advance`]
-//! when the body is read (`bodies.rs`).
+//! when the body is read (`engine/bodies.rs`).
 //!
 //! m C dθ/dt = − hc a_s (θ − θ0) − B a_s ε (θ⁴ − θs⁴), a_s = 4π b², for every body.
-//! Two integrators: `explicit` (forward Euler, the papers' choice; stable only for
-//! Δt ≲ m C / (4 B ε a_s θ³)) and `implicit` (backward Euler by safeguarded Newton:
-//! unconditionally stable, monotone — θ stays between its old value and the
-//! equilibrium). The closed form for hc = 0, θs = 0 is [`radiative_closed_form`].
+//! Integrators (`physics.cooling`): `explicit` (forward Euler, the papers' choice; stable
+//! only for Δt ≲ m C / (4 B ε a_s θ³)), `explicit_clamped` (forward Euler stopped at the
+//! equilibrium), `implicit` (backward Euler by safeguarded Newton: unconditionally stable,
+//! monotone — θ stays between its old value and the equilibrium) and `exact` (the
+//! accurate integrator the event core uses). The closed form for hc = 0, θs = 0 is [`radiative_closed_form`].
 //!
 //! Reads: Δt, masses, radii. Writes: temperatures, hardness, [`EnergyLedger::cooling_loss`].
 

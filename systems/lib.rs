@@ -136,7 +136,7 @@ fn fragmentation_off(material: &Material, physics: &Physics) -> Option<&'static 
 }
 
 /// Cooling (stage 6); not scheduled when off or when ε = hc = 0, nor on the event core,
-/// which cools each body over the whole interval when it is read (`bodies.rs`).
+/// which cools each body over the whole interval when it is read (`engine/bodies.rs`).
 pub struct CoolingPlugin;
 impl SimPlugin for CoolingPlugin {
     fn name(&self) -> &'static str {

@@ -2,8 +2,8 @@
 //!
 //! Runs after impacts, merging and fragmentation so that t_c is computed from the
 //! post-impact velocities and the current bodies: that is what makes "no collision
-//! missed for c ≤ 1" hold. (docs/model.md §3 lists the step size under contact detection;
-//! computing it there would use pre-impact velocities.) When nothing changed this
+//! missed for c ≤ 1" hold (docs/model.md §3, item 5: computing it with contact detection
+//! would use pre-impact velocities). When nothing changed this
 //! step, contact detection's neighbour table is reused; after bounces only, its
 //! positions and velocities are refreshed; after merging or fragmentation it is rebuilt.
 //!

@@ -327,7 +327,7 @@ pub fn schedule_next_step(
     clock.dt = step_to_next_event(&core, &clock, time.end, dt_max);
 }
 
-/// Count the core's missed contacts into the run's counters (stage `Diagnostics`).
+/// Count the core's missed contacts into the run's counters (stage `Boundary`).
 pub fn report_overlaps(core: Res<EventCore>, mut counters: ResMut<Counters>) {
     counters.overlap_violations = core.stats.deep_overlaps;
 }
