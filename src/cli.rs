@@ -3,8 +3,6 @@
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -13,6 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 mod clamp_watch;
 mod inverse;
 mod ranks;
+mod signals;
 
 use agglo::output::{write_final_state, write_summary};
 use agglo::prelude::*;
@@ -283,17 +282,12 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
 
     let mut sim = Simulation::new(&scenario).context("setting up the scene")?;
 
-    let interrupted = Arc::new(AtomicBool::new(false));
-    {
-        let flag = interrupted.clone();
-        // A second handler cannot be installed (e.g. in tests); the run still works without one.
-        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
-    }
+    let stop = signals::StopRequest::install();
     let layout_path = match &mcap_path {
         Some(path) => Some(write_layout_beside(path, &scenario)?),
         None => None,
     };
-    // Created after the Ctrl-C handler: once the file exists, an interrupt finalises it.
+    // Created after the signal handlers: once the file exists, a stop signal finalises it.
     let mut recorder = match &mcap_path {
         Some(path) => {
             let command_line = std::env::args().collect::<Vec<_>>().join(" ");
@@ -346,7 +340,7 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
             record_error = Some(e);
             return ControlFlow::Break(());
         }
-        if interrupted.load(Ordering::SeqCst) {
+        if stop.requested() {
             ControlFlow::Break(())
         } else {
             ControlFlow::Continue(())
@@ -393,8 +387,11 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     if let Some(e) = record_error {
         return Err(e.context("recording the run"));
     }
-    outcome.context("running the scenario")?;
-    Ok(())
+    let outcome = outcome.context("running the scenario");
+    match stop.describe() {
+        Some(why) => outcome.context(why),
+        None => outcome,
+    }
 }
 
 /// Write the Foxglove layout fitted to the scene's box beside the recording `mcap`.

@@ -70,12 +70,10 @@ fn load(path: &Path) -> anyhow::Result<InverseProblem> {
         .with_context(|| format!("loading inverse problem {}", path.display()))
 }
 
+/// The flag a stop signal (SIGINT, SIGTERM, SIGHUP) sets: the batch then stops starting
+/// samples and the checkpoint of the last finished generation stays the one to resume.
 fn interrupt_flag() -> Arc<AtomicBool> {
-    let flag = Arc::new(AtomicBool::new(false));
-    let f = flag.clone();
-    // A second handler cannot be installed (e.g. in tests); the run still works without one.
-    let _ = ctrlc::set_handler(move || f.store(true, Ordering::SeqCst));
-    flag
+    super::signals::StopRequest::install().flag()
 }
 
 pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result<()> {

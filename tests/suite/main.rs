@@ -22,6 +22,7 @@ mod readings;
 mod record;
 mod scenarios;
 mod self_contained;
+mod signals;
 mod stepping;
 mod study;
 mod unfinishable_runs;
