@@ -18,7 +18,10 @@ use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
 use glam::DVec3;
 
-use crate::components::{BodyItem, BodyQuery, BodyState};
+use crate::components::{
+    BodyState, Hardness, LocalTime, Mass, Particle, ParticleId, Position, Primaries, Radius,
+    Temperature, Velocity,
+};
 use crate::laws::cooling::CoolingLaw;
 use crate::resources::{BoxGeometry, EnergyLedger, LazyState, SimClock, StepEvents};
 use crate::scene::{CoolingMethod, Material, Physics};
@@ -110,20 +113,18 @@ pub fn state_at(body: &BodyState, t_ref: f64, now: f64, clockwork: &Clockwork) -
     b
 }
 
-impl BodyItem<'_, '_> {
-    /// This body as [`bring_to`] advances it.
-    pub fn lazy(&mut self) -> LazyBody<'_> {
-        LazyBody {
-            position: &mut self.position.0,
-            velocity: self.velocity.0,
-            mass: self.mass.0,
-            radius: self.radius.0,
-            temperature: &mut self.temperature.0,
-            hardness: &mut self.hardness.0,
-            t_ref: &mut self.local_time.0,
-        }
-    }
-}
+type BodyData = (
+    Entity,
+    &'static ParticleId,
+    &'static mut Position,
+    &'static mut Velocity,
+    &'static Mass,
+    &'static Radius,
+    &'static mut Temperature,
+    &'static mut Hardness,
+    &'static Primaries,
+    &'static mut LocalTime,
+);
 
 /// Bodies at the current time, for systems that add physics (forces, heating, …).
 ///
@@ -141,7 +142,7 @@ impl BodyItem<'_, '_> {
 /// of docs/model.md §10 hold with any extension.
 #[derive(SystemParam)]
 pub struct Bodies<'w, 's> {
-    query: BodyQuery<'w, 's>,
+    query: Query<'w, 's, BodyData, With<Particle>>,
     clock: Res<'w, SimClock>,
     geometry: Res<'w, BoxGeometry>,
     material: Res<'w, Material>,
@@ -173,18 +174,13 @@ impl Bodies<'_, '_> {
 
     /// A body's state at the current time (read only: nothing is written).
     pub fn get(&self, entity: Entity) -> Option<BodyState> {
-        let body = self.query.get(entity).ok()?;
-        let state = body.state();
+        let (_, id, p, v, m, b, t, h, n, lt) = self.query.get(entity).ok()?;
+        let state = BodyState::from((id, p, v, m, b, t, h, n));
         if !self.lazy.0 {
             return Some(state);
         }
         let clockwork = Clockwork::new(&self.geometry, &self.material, &self.options);
-        Some(state_at(
-            &state,
-            body.local_time.0,
-            self.clock.time,
-            &clockwork,
-        ))
+        Some(state_at(&state, lt.0, self.clock.time, &clockwork))
     }
 
     /// Change one body: it is brought to the current time, `change` edits it, and the
@@ -253,34 +249,46 @@ impl Tally {
 /// Bring a body to `now` (lazy core), record its state before the change, apply it;
 /// returns what it moved in the energy ledger.
 fn apply(
-    mut body: BodyItem<'_, '_>,
+    row: <BodyData as bevy_ecs::query::QueryData>::Item<'_, '_>,
     now: f64,
     lazy: bool,
     clockwork: &Clockwork,
     events: &mut StepEvents,
     change: impl FnOnce(&mut BodyState),
 ) -> Tally {
+    let (entity, id, mut p, mut v, m, b, mut t, mut h, n, mut lt) = row;
     // The contribution before the body is brought forward: the heat it loses on the
     // way is tallied in the ledger and shows in its state after.
     let c = clockwork.material.C;
-    let totals = |b: &BodyItem| Totals::of_body(b.mass.0, b.velocity.0, b.temperature.0, c);
-    events.touch(body.entity, totals(&body));
+    events.touch(entity, Totals::of_body(m.0, v.0, t.0, c));
     let mut tally = Tally::default();
     if lazy {
-        tally.cooling_loss = bring_to(now, clockwork, body.lazy());
+        tally.cooling_loss = bring_to(
+            now,
+            clockwork,
+            LazyBody {
+                position: &mut p.0,
+                velocity: v.0,
+                mass: m.0,
+                radius: b.0,
+                temperature: &mut t.0,
+                hardness: &mut h.0,
+                t_ref: &mut lt.0,
+            },
+        );
     }
     // Energies before and after, computed as `contribution` computes them, so the
     // ledger moves by exactly the difference the diagnostics' running totals see.
-    let before = totals(&body);
-    let mut state = body.state();
+    let before = Totals::of_body(m.0, v.0, t.0, c);
+    let mut state = BodyState::from((id, &*p, &*v, m, b, &*t, &*h, n));
     change(&mut state);
-    body.position.0 = clockwork.geometry.wrap(state.position);
-    body.velocity.0 = state.velocity;
-    if state.temperature != body.temperature.0 {
-        body.temperature.0 = state.temperature;
-        body.hardness.0 = clockwork.material.hardness(state.temperature);
+    p.0 = clockwork.geometry.wrap(state.position);
+    v.0 = state.velocity;
+    if state.temperature != t.0 {
+        t.0 = state.temperature;
+        h.0 = clockwork.material.hardness(t.0);
     }
-    let after = totals(&body);
+    let after = Totals::of_body(m.0, v.0, t.0, c);
     tally.work = after.kinetic - before.kinetic;
     tally.work_turnover = tally.work.abs();
     tally.heat = after.thermal - before.thermal;

@@ -8,7 +8,6 @@
 //! [`crate::scene::Material::hardness`]).
 
 use bevy_ecs::prelude::*;
-use bevy_ecs::query::QueryData;
 use glam::DVec3;
 
 /// Marker for particle entities (resources are entities too in bevy_ecs 0.20,
@@ -85,55 +84,32 @@ pub struct BodyState {
     pub primaries: f64,
 }
 
-/// One body as a system queries it: the entity and every component, by name. The one
-/// body-query type of the engine and the built-in systems: [`BodyQuery`] reads and
-/// writes bodies, [`BodyReadQuery`] (its read-only form, [`BodyReadOnly`]) only reads.
-/// On the event core a body's position, temperature and hardness hold at its
-/// [`LocalTime`]; extensions read bodies through `crate::bodies::Bodies` instead, which
-/// brings them to the current time.
-#[derive(QueryData)]
-#[query_data(mutable)]
-pub struct Body {
-    pub entity: Entity,
-    pub id: &'static ParticleId,
-    pub position: &'static mut Position,
-    pub velocity: &'static mut Velocity,
-    pub mass: &'static mut Mass,
-    pub radius: &'static mut Radius,
-    pub temperature: &'static mut Temperature,
-    pub hardness: &'static mut Hardness,
-    pub primaries: &'static mut Primaries,
-    pub local_time: &'static mut LocalTime,
-}
+/// A body's components, as a query reads them.
+pub type BodyComponents<'a> = (
+    &'a ParticleId,
+    &'a Position,
+    &'a Velocity,
+    &'a Mass,
+    &'a Radius,
+    &'a Temperature,
+    &'a Hardness,
+    &'a Primaries,
+);
 
-/// Every body, to read and write.
-pub type BodyQuery<'w, 's> = Query<'w, 's, Body, With<Particle>>;
-
-/// Every body, to read.
-pub type BodyReadQuery<'w, 's> = Query<'w, 's, BodyReadOnly, With<Particle>>;
-
-/// `state()` on both items, mutable and read-only: the same fields, read the same way.
-macro_rules! state_of_item {
-    ($item:ident) => {
-        impl $item<'_, '_> {
-            /// A plain copy of this body's components (as they hold at its [`LocalTime`]).
-            pub fn state(&self) -> BodyState {
-                BodyState {
-                    id: self.id.0,
-                    position: self.position.0,
-                    velocity: self.velocity.0,
-                    mass: self.mass.0,
-                    radius: self.radius.0,
-                    temperature: self.temperature.0,
-                    hardness: self.hardness.0,
-                    primaries: self.primaries.0,
-                }
-            }
+impl From<BodyComponents<'_>> for BodyState {
+    fn from((id, p, v, m, b, t, h, n): BodyComponents<'_>) -> Self {
+        Self {
+            id: id.0,
+            position: p.0,
+            velocity: v.0,
+            mass: m.0,
+            radius: b.0,
+            temperature: t.0,
+            hardness: h.0,
+            primaries: n.0,
         }
-    };
+    }
 }
-state_of_item!(BodyItem);
-state_of_item!(BodyReadOnlyItem);
 
 impl BodyState {
     /// The components of this body at t = 0, ready to spawn.

@@ -16,10 +16,13 @@ use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleT
 use bevy_ecs::system::ScheduleSystem;
 use serde::{Deserialize, Serialize};
 
-use crate::bodies::{Clockwork, bring_to, state_at};
+use crate::bodies::{Clockwork, LazyBody, bring_to, state_at};
 use crate::cloud::PrimaryGrain;
 use crate::cloud::generate_cloud;
-use crate::components::{Body, BodyReadOnly, BodyState, Particle};
+use crate::components::{
+    BodyState, Hardness, LocalTime, Mass, Particle, ParticleId, Position, Primaries, Radius,
+    Temperature, Velocity,
+};
 use crate::error::SimError;
 use crate::resources::*;
 use crate::scene::{Material, Physics, TimeControl, uses_event_core};
@@ -540,9 +543,29 @@ impl Simulation {
         let physics = *self.world.resource::<Physics>();
         let clockwork = Clockwork::new(&geometry, &material, &physics);
         let mut lost = 0.0;
-        let mut query = self.world.query_filtered::<Body, With<Particle>>();
-        for mut body in query.iter_mut(&mut self.world) {
-            lost += bring_to(now, &clockwork, body.lazy());
+        let mut query = self.world.query_filtered::<(
+            &mut Position,
+            &Velocity,
+            &Mass,
+            &Radius,
+            &mut Temperature,
+            &mut Hardness,
+            &mut LocalTime,
+        ), With<Particle>>();
+        for (mut p, v, m, b, mut t, mut h, mut lt) in query.iter_mut(&mut self.world) {
+            lost += bring_to(
+                now,
+                &clockwork,
+                LazyBody {
+                    position: &mut p.0,
+                    velocity: v.0,
+                    mass: m.0,
+                    radius: b.0,
+                    temperature: &mut t.0,
+                    hardness: &mut h.0,
+                    t_ref: &mut lt.0,
+                },
+            );
         }
         self.world.resource_mut::<EnergyLedger>().cooling_loss += lost;
     }
@@ -558,10 +581,17 @@ impl Simulation {
     /// Every body, sorted by stable id (from a shared reference, so observers of
     /// [`Simulation::run_with`] can read it).
     pub fn bodies(&self) -> Vec<BodyState> {
-        let Some(mut query) = self
-            .world
-            .try_query_filtered::<BodyReadOnly, With<Particle>>()
-        else {
+        let Some(mut query) = self.world.try_query_filtered::<(
+            &ParticleId,
+            &Position,
+            &Velocity,
+            &Mass,
+            &Radius,
+            &Temperature,
+            &Hardness,
+            &Primaries,
+            &LocalTime,
+        ), With<Particle>>() else {
             return Vec::new(); // components never registered: no particles
         };
         // Event core: each body is brought to the current time as it is read.
@@ -570,10 +600,10 @@ impl Simulation {
         let clockwork = self.clockwork();
         let mut bodies: Vec<BodyState> = query
             .iter(&self.world)
-            .map(|body| {
-                let state = body.state();
+            .map(|(id, p, v, m, b, t, h, n, lt)| {
+                let state = BodyState::from((id, p, v, m, b, t, h, n));
                 if lazy {
-                    state_at(&state, body.local_time.0, now, &clockwork)
+                    state_at(&state, lt.0, now, &clockwork)
                 } else {
                     state
                 }

@@ -19,7 +19,7 @@ use bevy_ecs::prelude::*;
 use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
 
-use agglo_engine::components::BodyReadQuery;
+use agglo_engine::components::{Mass, Particle, ParticleId, Position, Radius, Velocity};
 use agglo_engine::laws::grid::{NearPair, NeighbourGrid};
 use agglo_engine::resources::{BoxGeometry, CONTACT_TOLERANCE, Contact, ContactList};
 use agglo_engine::scene::Stepping;
@@ -49,20 +49,26 @@ pub struct NeighbourTable {
     order: Vec<(u64, Entity, DVec3, DVec3, f64, f64)>,
 }
 
+pub type BodyQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        &'static ParticleId,
+        &'static Position,
+        &'static Velocity,
+        &'static Radius,
+        &'static Mass,
+    ),
+    With<Particle>,
+>;
+
 impl NeighbourTable {
     /// Refill the table from the world and search pairs within `margin` [m].
-    pub fn rebuild(&mut self, bodies: &BodyReadQuery, geometry: &BoxGeometry, margin: f64) {
+    pub fn rebuild(&mut self, bodies: &BodyQuery, geometry: &BoxGeometry, margin: f64) {
         self.order.clear();
-        for b in bodies.iter() {
-            let row = (
-                b.id.0,
-                b.entity,
-                b.position.0,
-                b.velocity.0,
-                b.radius.0,
-                b.mass.0,
-            );
-            self.order.push(row);
+        for (e, id, p, v, r, m) in bodies.iter() {
+            self.order.push((id.0, e, p.0, v.0, r.0, m.0));
         }
         // Query order is not guaranteed: sort by the stable id (nearly sorted → cheap).
         self.order.sort_by_key(|row| row.0);
@@ -102,7 +108,7 @@ impl NeighbourTable {
     /// Reuse the pair list as a Verlet list if the same bodies are present and none has
     /// moved more than a quarter of the margin relative to the mean motion since the
     /// rebuild; refreshes positions, velocities and pair geometry. False = rebuild.
-    pub fn try_reuse(&mut self, bodies: &BodyReadQuery, geometry: &BoxGeometry) -> bool {
+    pub fn try_reuse(&mut self, bodies: &BodyQuery, geometry: &BoxGeometry) -> bool {
         if !self.valid || self.margin <= 0.0 || bodies.iter().len() != self.ids.len() {
             return false;
         }
@@ -156,20 +162,20 @@ impl NeighbourTable {
     /// impacts changed velocities and nudged overlapping pairs apart, but no body was
     /// added, removed or resized. Pairs pushed from just outside the margin to just
     /// inside it (by at most an overlap, ~1e-9 b) are not added; they are met next step.
-    pub fn refresh(&mut self, bodies: &BodyReadQuery, geometry: &BoxGeometry) {
+    pub fn refresh(&mut self, bodies: &BodyQuery, geometry: &BoxGeometry) {
         self.reload(bodies);
         self.update_pairs(geometry);
     }
 
     /// Copy current positions and velocities of the table's bodies from the world;
     /// false if one of them no longer exists (the table is then stale).
-    fn reload(&mut self, bodies: &BodyReadQuery) -> bool {
+    fn reload(&mut self, bodies: &BodyQuery) -> bool {
         let mut all_present = true;
         for k in 0..self.entities.len() {
             match bodies.get(self.entities[k]) {
-                Ok(b) => {
-                    self.positions[k] = b.position.0;
-                    self.velocities[k] = b.velocity.0;
+                Ok((_, _, p, v, _, _)) => {
+                    self.positions[k] = p.0;
+                    self.velocities[k] = v.0;
                 }
                 Err(_) => all_present = false,
             }
@@ -215,7 +221,7 @@ pub struct ContactScratch {
 
 /// The system.
 pub fn detect_contacts(
-    bodies: BodyReadQuery,
+    bodies: BodyQuery,
     scene: SceneConstants,
     mut table: ResMut<NeighbourTable>,
     mut scratch: ResMut<ContactScratch>,
@@ -237,7 +243,7 @@ pub fn detect_contacts(
     } = books;
     changed.0 = false;
     if clock.bodies_reshaped || !table.try_reuse(&bodies, &geometry) {
-        let max_radius = bodies.iter().map(|b| b.radius.0).fold(0.0, f64::max);
+        let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
         let margin = search_margin(&time.stepping, primary.radius, max_radius);
         table.rebuild(&bodies, &geometry, margin);
     }

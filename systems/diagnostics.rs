@@ -21,7 +21,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use agglo_engine::components::{
-    BodyReadOnlyItem, BodyReadQuery, Mass, Particle, Temperature, Velocity,
+    Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
 };
 use agglo_engine::resources::{Counters, EnergyLedger, InvariantReport, SimClock, StepEvents};
 pub use agglo_engine::totals::{Totals, totals};
@@ -110,7 +110,7 @@ pub struct Checks<'w, 's> {
 }
 
 /// The system.
-pub fn check_invariants(mut checks: Checks, bodies: BodyReadQuery) {
+pub fn check_invariants(mut checks: Checks, bodies: TotalsQuery) {
     let clock = *checks.clock;
     // clock.step is the index of the step being finished; check after every `every`-th.
     if !(clock.step + 1).is_multiple_of(checks.settings.every)
@@ -247,45 +247,26 @@ impl RunningTotals {
     }
 }
 
-/// A body's contribution to the totals, with heat capacity `c` [J/(kg K)].
-fn contribution(body: &BodyReadOnlyItem, c: f64) -> Totals {
-    Totals::of_body(body.mass.0, body.velocity.0, body.temperature.0, c)
-}
-
-/// Totals over every body, with heat capacity `c` [J/(kg K)].
-fn totals_of(bodies: &BodyReadQuery, c: f64) -> Totals {
-    totals(
-        bodies
-            .iter()
-            .map(|b| (b.mass.0, b.velocity.0, b.temperature.0)),
-        c,
-    )
-}
-
-/// The violation a body's state is, if it is one: a non-finite value, θ ≤ 0 or m ≤ 0.
-fn invalid_state(step: u64, body: &BodyReadOnlyItem) -> Option<String> {
-    let (p, v, m, b, t) = (
-        body.position.0,
-        body.velocity.0,
-        body.mass.0,
-        body.radius.0,
-        body.temperature.0,
-    );
-    let finite = p.is_finite() && v.is_finite() && m.is_finite() && b.is_finite();
-    (!finite || !t.is_finite() || t <= 0.0 || m <= 0.0).then(|| {
-        format!(
-            "step {step}: body {} has invalid state (r = {p}, v = {v}, m = {m:e}, b = {b:e}, θ = {t:e})",
-            body.id.0
-        )
-    })
-}
+type TotalsQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static ParticleId,
+        &'static Position,
+        &'static Velocity,
+        &'static Mass,
+        &'static Radius,
+        &'static Temperature,
+    ),
+    With<Particle>,
+>;
 
 /// The event core's checks: the totals follow the bodies each step touched; every
 /// `full_every` steps and at the end they are recomputed over all bodies.
 pub fn check_step_totals(
     mut checks: Checks,
     events: Res<StepEvents>,
-    bodies: BodyReadQuery,
+    bodies: TotalsQuery,
     mut running: ResMut<RunningTotals>,
     mut seen: Local<Vec<(Entity, Totals)>>,
 ) {
@@ -303,11 +284,17 @@ pub fn check_step_totals(
         .map(|x| x.0)
         .chain(events.spawned.iter().copied());
     for entity in changed {
-        let Ok(body) = bodies.get(entity) else {
+        let Ok((id, p, v, m, b, t)) = bodies.get(entity) else {
             continue; // removed this step
         };
-        violations.extend(invalid_state(step, &body));
-        running.add(&contribution(&body, c), 1.0);
+        let finite = p.0.is_finite() && v.0.is_finite() && m.0.is_finite() && b.0.is_finite();
+        if !finite || !t.0.is_finite() || t.0 <= 0.0 || m.0 <= 0.0 {
+            violations.push(format!(
+                "step {step}: body {} has invalid state (r = {}, v = {}, m = {:e}, b = {:e}, θ = {:e})",
+                id.0, p.0, v.0, m.0, b.0, t.0
+            ));
+        }
+        running.add(&Totals::of_body(m.0, v.0, t.0, c), 1.0);
     }
     for (_, before) in seen.iter() {
         running.add(before, -1.0);
@@ -317,7 +304,7 @@ pub fn check_step_totals(
     if (clock.step + 1).is_multiple_of(running.full_every) || last {
         // Full recomputation: also catches a change no system reported.
         checks.check_now(&bodies);
-        let all = totals_of(&bodies, c);
+        let all = totals(bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)), c);
         running.reset(&all);
     } else if (clock.step + 1).is_multiple_of(checks.settings.every) {
         let now = running.totals();
@@ -386,14 +373,23 @@ impl Checks<'_, '_> {
     }
 
     /// Run every check once and record violations.
-    pub fn check_now(&mut self, bodies: &BodyReadQuery) {
+    pub fn check_now(&mut self, bodies: &TotalsQuery) {
         let step = self.clock.step;
         let mut violations: Vec<String> = Vec::new();
-        for body in bodies.iter() {
-            violations.extend(invalid_state(step, &body));
+        for (id, p, v, m, b, t) in bodies.iter() {
+            let finite = p.0.is_finite() && v.0.is_finite() && m.0.is_finite() && b.0.is_finite();
+            if !finite || !t.0.is_finite() || t.0 <= 0.0 || m.0 <= 0.0 {
+                violations.push(format!(
+                "step {step}: body {} has invalid state (r = {}, v = {}, m = {:e}, b = {:e}, θ = {:e})",
+                id.0, p.0, v.0, m.0, b.0, t.0
+            ));
+            }
         }
         self.record(violations);
-        let now = totals_of(bodies, self.material.C);
+        let now = totals(
+            bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)),
+            self.material.C,
+        );
         self.compare(&now);
     }
 }

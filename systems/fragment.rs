@@ -19,7 +19,9 @@ use bevy_ecs::prelude::*;
 use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
 
-use agglo_engine::components::{BodyReadQuery, BodyState};
+use agglo_engine::components::{
+    BodyState, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
+};
 use agglo_engine::resources::{IdAllocator, ImpactRecords};
 
 /// Number of equal pieces k = ⌊(1 + x)³⌋, x = δK / (4π γ b0²) (P04 (5.2)).
@@ -67,11 +69,26 @@ pub fn piece_offsets(count: usize, piece_radius: f64) -> Vec<DVec3> {
     dirs.into_iter().map(|d| d * scale).collect()
 }
 
+type FragmentQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static ParticleId,
+        &'static Position,
+        &'static Velocity,
+        &'static Mass,
+        &'static Radius,
+        &'static Temperature,
+        &'static Primaries,
+    ),
+    With<Particle>,
+>;
+
 /// The system.
 pub fn fragment_bodies(
     records: Res<ImpactRecords>,
     scene: SceneConstants,
-    bodies: BodyReadQuery,
+    bodies: FragmentQuery,
     mut ids: ResMut<IdAllocator>,
     books: RunBooks,
     mut commands: Commands,
@@ -104,28 +121,28 @@ pub fn fragment_bodies(
     // Id allocation order must not depend on query order.
     absorbed.sort_by_key(|x| x.0);
     for &(_, entity, energy) in absorbed.iter() {
-        let Ok(body) = bodies.get(entity) else {
+        let Ok((id, p, v, m, b, t, n)) = bodies.get(entity) else {
             continue;
         };
-        let k = piece_count(energy, body.radius.0, material.surface_energy());
-        if k < 2 || body.primaries.0 < 2.0 {
+        let k = piece_count(energy, b.0, material.surface_energy());
+        if k < 2 || n.0 < 2.0 {
             continue;
         }
-        let pieces = k.min(body.primaries.0.floor() as u64).max(2);
-        let dz = surface_energy(material.surface_energy(), body.radius.0, pieces);
-        let theta = body.temperature.0 - dz / (body.mass.0 * material.C);
-        let piece_mass = body.mass.0 / pieces as f64;
+        let pieces = k.min(n.0.floor() as u64).max(2);
+        let dz = surface_energy(material.surface_energy(), b.0, pieces);
+        let theta = t.0 - dz / (m.0 * material.C);
+        let piece_mass = m.0 / pieces as f64;
         let piece_radius = material.radius_of_mass(piece_mass);
         for offset in piece_offsets(pieces as usize, piece_radius) {
             let state = BodyState {
                 id: ids.allocate(),
-                position: geometry.wrap(body.position.0 + offset),
-                velocity: body.velocity.0,
+                position: geometry.wrap(p.0 + offset),
+                velocity: v.0,
                 mass: piece_mass,
                 radius: piece_radius,
                 temperature: theta,
                 hardness: material.hardness(theta),
-                primaries: body.primaries.0 / pieces as f64,
+                primaries: n.0 / pieces as f64,
             };
             // Pieces are placed now: their state holds at the current time.
             events
@@ -133,7 +150,7 @@ pub fn fragment_bodies(
                 .push(commands.spawn(state.bundle_at(clock.time)).id());
         }
         commands.entity(entity).despawn();
-        events.despawned.push(body.id.0);
+        events.despawned.push(id.0);
         counters.fragmentations += 1;
         counters.fragments_created += pieces;
         ledger.fracture_energy += dz;

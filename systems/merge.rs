@@ -23,15 +23,33 @@ use bevy_ecs::prelude::*;
 
 use agglo_engine::params::{RunBooks, SceneConstants};
 
-use agglo_engine::components::BodyQuery;
+use agglo_engine::components::{
+    Hardness, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
+};
 use agglo_engine::resources::ImpactRecords;
 use agglo_engine::scene::ImpactsPerStep;
+
+type MergeQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static mut Position,
+        &'static mut Velocity,
+        &'static mut Mass,
+        &'static mut Radius,
+        &'static mut Temperature,
+        &'static mut Hardness,
+        &'static mut Primaries,
+        &'static ParticleId,
+    ),
+    With<Particle>,
+>;
 
 /// The system.
 pub fn merge_bonded(
     records: Res<ImpactRecords>,
     scene: SceneConstants,
-    mut bodies: BodyQuery,
+    mut bodies: MergeQuery,
     books: RunBooks,
     mut commands: Commands,
 ) {
@@ -67,7 +85,7 @@ pub fn merge_bonded(
         let chained = (a, b) != (record.a, record.b);
         let (a, b) = if chained {
             match (bodies.get(a), bodies.get(b)) {
-                (Ok(x), Ok(y)) if y.id.0 < x.id.0 => (b, a),
+                (Ok(x), Ok(y)) if y.7.0 < x.7.0 => (b, a),
                 (Ok(_), Ok(_)) => (a, b),
                 _ => continue,
             }
@@ -78,26 +96,12 @@ pub fn merge_bonded(
             continue;
         };
         let separation = if chained {
-            geometry.min_image(gone.position.0 - keep.position.0)
+            geometry.min_image(gone.0.0 - keep.0.0)
         } else {
             record.separation
         };
-        let (mut pa, mut va, mut ma, mut ra, mut ta, mut ha, mut na) = (
-            keep.position,
-            keep.velocity,
-            keep.mass,
-            keep.radius,
-            keep.temperature,
-            keep.hardness,
-            keep.primaries,
-        );
-        let (vb, mb, tb, nb, id_b) = (
-            gone.velocity,
-            gone.mass,
-            gone.temperature,
-            gone.primaries,
-            gone.id,
-        );
+        let (mut pa, mut va, mut ma, mut ra, mut ta, mut ha, mut na, _) = keep;
+        let (_, vb, mb, _, tb, _, nb, id_b) = gone;
         let m = ma.0 + mb.0;
         let relative_motion = if several_impacts {
             0.5 * ma.0 * mb.0 / m * (va.0 - vb.0).length_squared()

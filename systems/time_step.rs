@@ -18,8 +18,7 @@
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 
-use super::contact::{NeighbourTable, search_margin};
-use agglo_engine::components::BodyReadQuery;
+use super::contact::{BodyQuery, NeighbourTable, search_margin};
 pub use agglo_engine::laws::contact_time::time_to_contact;
 use agglo_engine::params::SceneConstants;
 use agglo_engine::resources::{Counters, SimClock, StateChanged};
@@ -27,7 +26,7 @@ use agglo_engine::scene::Stepping;
 
 /// The system.
 pub fn choose_time_step(
-    bodies: BodyReadQuery,
+    bodies: BodyQuery,
     scene: SceneConstants,
     changed: Res<StateChanged>,
     mut table: ResMut<NeighbourTable>,
@@ -52,7 +51,7 @@ pub fn choose_time_step(
         } => {
             let skin = time.stepping.search_skin(primary.radius);
             if clock.bodies_reshaped {
-                let max_radius = bodies.iter().map(|b| b.radius.0).fold(0.0, f64::max);
+                let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
                 table.rebuild(
                     &bodies,
                     &geometry,

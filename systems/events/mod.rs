@@ -30,15 +30,44 @@ use glam::DVec3;
 
 use self::calendar::EventKind;
 use self::core::{EventCore, Trajectory, morton_key};
-use agglo_engine::bodies::{Clockwork, bring_to};
+use agglo_engine::bodies::{Clockwork, LazyBody, bring_to};
 use agglo_engine::components::{
-    BodyItem, BodyQuery, BodyReadOnly, BodyReadQuery, Mass, Particle, Velocity,
+    Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
 };
 use agglo_engine::resources::{BoxGeometry, Contact, ContactList, Counters, SimClock, StepEvents};
 use agglo_engine::totals::Totals;
 
 /// Events closer than this (relative to t) count as simultaneous.
 const SIMULTANEOUS: f64 = 1e-13;
+
+type LazyQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static ParticleId,
+        &'static mut Position,
+        &'static Velocity,
+        &'static Mass,
+        &'static Radius,
+        &'static mut Temperature,
+        &'static mut Hardness,
+        &'static mut LocalTime,
+    ),
+    With<Particle>,
+>;
+
+type ReadQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static ParticleId,
+        &'static Position,
+        &'static Velocity,
+        &'static Radius,
+        &'static LocalTime,
+    ),
+    With<Particle>,
+>;
 
 fn horizon(now: f64) -> f64 {
     now + SIMULTANEOUS * now.abs().max(f64::MIN_POSITIVE)
@@ -64,15 +93,22 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
         DVec3::ZERO
     };
     let mut rows: Vec<Trajectory> = world
-        .query_filtered::<BodyReadOnly, With<Particle>>()
+        .query_filtered::<(
+            Entity,
+            &ParticleId,
+            &Position,
+            &Velocity,
+            &Radius,
+            &LocalTime,
+        ), With<Particle>>()
         .iter(world)
-        .map(|body| Trajectory {
-            entity: body.entity,
-            id: body.id.0,
-            position: body.position.0,
-            velocity: body.velocity.0,
-            t_ref: body.local_time.0,
-            radius: body.radius.0,
+        .map(|(e, id, p, v, r, t)| Trajectory {
+            entity: e,
+            id: id.0,
+            position: p.0,
+            velocity: v.0,
+            t_ref: t.0,
+            radius: r.0,
         })
         .collect();
     // Slots in Morton (Z-curve) order of position: bodies close in space get slots close
@@ -98,7 +134,7 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
 pub fn pop_due_contacts(
     mut core: ResMut<EventCore>,
     scene: SceneConstants,
-    mut bodies: BodyQuery,
+    mut bodies: LazyQuery,
     mut contacts: ResMut<ContactList>,
     books: RunBooks,
     mut candidates: Local<Vec<(u64, u64, u32, u32)>>,
@@ -173,21 +209,31 @@ pub fn pop_due_contacts(
         };
         // Each body's contribution to the totals before it is brought forward: the heat
         // it loses on the way is tallied in the ledger and shows in its state after.
-        let totals =
-            |x: &BodyItem| Totals::of_body(x.mass.0, x.velocity.0, x.temperature.0, heat_capacity);
-        let (before_a, before_b) = (totals(&a), totals(&b));
+        let before_a = Totals::of_body(a.3.0, a.2.0, a.5.0, heat_capacity);
+        let before_b = Totals::of_body(b.3.0, b.2.0, b.5.0, heat_capacity);
         for body in [&mut a, &mut b] {
-            ledger.cooling_loss += bring_to(now, &clockwork, body.lazy());
+            let (_, p, v, m, r, t, h, lt) = body;
+            ledger.cooling_loss += bring_to(
+                now,
+                &clockwork,
+                LazyBody {
+                    position: &mut p.0,
+                    velocity: v.0,
+                    mass: m.0,
+                    radius: r.0,
+                    temperature: &mut t.0,
+                    hardness: &mut h.0,
+                    t_ref: &mut lt.0,
+                },
+            );
         }
-        let reach = a.radius.0 + b.radius.0;
-        let relative_velocity = a.velocity.0 - b.velocity.0;
-        let separation =
-            core.contact_separation(a.position.0, b.position.0, reach, relative_velocity);
+        let reach = a.4.0 + b.4.0;
+        let separation = core.contact_separation(a.1.0, b.1.0, reach, a.2.0 - b.2.0);
         let distance = separation.length();
         let normal = separation / distance;
         // Approaching along the line of centres (rounding may say otherwise for a
         // grazing pair: then there is nothing to resolve).
-        if distance == 0.0 || relative_velocity.dot(normal) <= 0.0 {
+        if distance == 0.0 || (a.2.0 - b.2.0).dot(normal) <= 0.0 {
             continue;
         }
         taken.push(sa);
@@ -197,8 +243,8 @@ pub fn pop_due_contacts(
         contacts.contacts.push(Contact {
             a: ea,
             b: eb,
-            id_a: a.id.0,
-            id_b: b.id.0,
+            id_a: a.0.0,
+            id_b: b.0.0,
             normal,
             separation,
             gap: distance - reach,
@@ -207,20 +253,20 @@ pub fn pop_due_contacts(
 }
 
 /// A body's trajectory as the world holds it (None if the entity is gone).
-fn trajectory_of(bodies: &BodyReadQuery, entity: Entity) -> Option<Trajectory> {
-    let body = bodies.get(entity).ok()?;
+fn trajectory_of(bodies: &ReadQuery, entity: Entity) -> Option<Trajectory> {
+    let (id, p, v, r, lt) = bodies.get(entity).ok()?;
     Some(Trajectory {
         entity,
-        id: body.id.0,
-        position: body.position.0,
-        velocity: body.velocity.0,
-        t_ref: body.local_time.0,
-        radius: body.radius.0,
+        id: id.0,
+        position: p.0,
+        velocity: v.0,
+        t_ref: lt.0,
+        radius: r.0,
     })
 }
 
 /// File the step's changes in the core and re-predict the bodies they touched.
-fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &BodyReadQuery, now: f64) {
+fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuery, now: f64) {
     let start = events.filed;
     // The slots to re-predict gather in `repredict` (already holding those whose event a
     // step used up): a buffer kept across steps, so nothing is allocated per step.
@@ -312,7 +358,7 @@ pub fn schedule_next_step(
     mut core: ResMut<EventCore>,
     mut clock: ResMut<SimClock>,
     time: Res<TimeControl>,
-    bodies: BodyReadQuery,
+    bodies: ReadQuery,
     mut events: ResMut<StepEvents>,
 ) {
     let now = clock.time;

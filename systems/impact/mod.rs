@@ -20,7 +20,7 @@ use bevy_ecs::prelude::*;
 use agglo_engine::params::{RunBooks, SceneConstants};
 use agglo_engine::scene::Material;
 
-use agglo_engine::components::BodyQuery;
+use agglo_engine::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
 use agglo_engine::resources::{ContactList, ImpactRecord, ImpactRecords};
 // The law (pure numerics) lives in the engine's laws; this module is its system.
 pub use agglo_engine::laws::impact::*;
@@ -51,12 +51,26 @@ pub fn pair_model(material: &Material, settings: &ImpactModel) -> PairModel {
     }
 }
 
+type ImpactQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static mut Position,
+        &'static mut Velocity,
+        &'static Mass,
+        &'static Radius,
+        &'static mut Temperature,
+        &'static mut Hardness,
+    ),
+    With<Particle>,
+>;
+
 /// The system: resolve every contact of [`ContactList`] in order.
 pub fn resolve_impacts(
     contacts: Res<ContactList>,
     scene: SceneConstants,
     settings: Res<ImpactModel>,
-    mut bodies: BodyQuery,
+    mut bodies: ImpactQuery,
     mut records: ResMut<ImpactRecords>,
     books: RunBooks,
 ) {
@@ -79,22 +93,8 @@ pub fn resolve_impacts(
         let Ok([a, b]) = bodies.get_many_mut([contact.a, contact.b]) else {
             continue;
         };
-        let (mut pa, mut va, ma, ra, mut ta, mut ha) = (
-            a.position,
-            a.velocity,
-            a.mass,
-            a.radius,
-            a.temperature,
-            a.hardness,
-        );
-        let (mut pb, mut vb, mb, rb, mut tb, mut hb) = (
-            b.position,
-            b.velocity,
-            b.mass,
-            b.radius,
-            b.temperature,
-            b.hardness,
-        );
+        let (mut pa, mut va, ma, ra, mut ta, mut ha) = a;
+        let (mut pb, mut vb, mb, rb, mut tb, mut hb) = b;
         let body_a = PairBody {
             mass: ma.0,
             radius: ra.0,
