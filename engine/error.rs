@@ -29,6 +29,11 @@ pub enum ScenarioError {
     },
     #[error("scenario field `{path}`: {message}")]
     Parse { path: String, message: String },
+    /// Not a scenario at all: empty, cut off, not JSON, not a JSON object, not UTF-8.
+    /// The message names the file (or "the scenario") and, where there is one, the
+    /// line and column.
+    #[error("{0}")]
+    Malformed(String),
     #[error("invalid scenario:\n  {}", .0.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("\n  "))]
     Invalid(Vec<ValidationIssue>),
 }

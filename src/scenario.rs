@@ -67,12 +67,53 @@ pub struct Scenario {
 impl Scenario {
     /// Parse a scenario from JSON text, reporting the path of the offending field.
     pub fn from_json(text: &str) -> Result<Self, ScenarioError> {
+        Self::parse(text, "the scenario")
+    }
+
+    /// Parse `text`, called `what` in messages (a file name, or "the scenario"): a text
+    /// that is not a scenario at all says so in a person's words (empty, cut off at line
+    /// L column C, not JSON, not an object); a field of the wrong type or out of range
+    /// is named by its path.
+    fn parse(text: &str, what: &str) -> Result<Self, ScenarioError> {
+        let malformed = |message: String| ScenarioError::Malformed(message);
+        let Some(first) = text.trim_start().chars().next() else {
+            return Err(malformed(format!("{what} is empty")));
+        };
+        if first != '{'
+            && let Some(kind) = json_kind(first)
+        {
+            return Err(malformed(format!(
+                "{what}: the top level must be a JSON object ({{ \"name\": …, … }}), not {kind}"
+            )));
+        }
         let de = &mut serde_json::Deserializer::from_str(text);
-        let scenario: Scenario =
-            serde_path_to_error::deserialize(de).map_err(|e| ScenarioError::Parse {
-                path: e.path().to_string(),
-                message: e.inner().to_string(),
-            })?;
+        let parsed: Result<Scenario, _> = serde_path_to_error::deserialize(&mut *de);
+        let scenario = match parsed {
+            Ok(scenario) => scenario,
+            Err(e) => {
+                let (path, inner) = (e.path().to_string(), e.into_inner());
+                return Err(match inner.classify() {
+                    serde_json::error::Category::Eof => malformed(format!(
+                        "{what} ends early at line {} column {} (cut off?)",
+                        inner.line(),
+                        inner.column()
+                    )),
+                    // A field's own path says where, when there is one.
+                    _ if path == "." || path == "?" => match inner.classify() {
+                        serde_json::error::Category::Syntax => {
+                            malformed(format!("{what} is not valid JSON: {inner}"))
+                        }
+                        _ => malformed(format!("{what}: {inner}")),
+                    },
+                    _ => ScenarioError::Parse {
+                        path,
+                        message: inner.to_string(),
+                    },
+                });
+            }
+        };
+        de.end()
+            .map_err(|e| malformed(format!("{what} has more after the scenario's object: {e}")))?;
         scenario.validate()?;
         Ok(scenario)
     }
@@ -90,11 +131,18 @@ impl Scenario {
 
     /// Read and parse a scenario file.
     pub fn load(path: &Path) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+        let bytes = std::fs::read(path).map_err(|source| ScenarioError::Io {
             path: path.display().to_string(),
             source,
         })?;
-        Self::from_json(&text)
+        let text = String::from_utf8(bytes).map_err(|e| {
+            ScenarioError::Malformed(format!(
+                "{} is not UTF-8 text (invalid byte at offset {})",
+                path.display(),
+                e.utf8_error().valid_up_to()
+            ))
+        })?;
+        Self::parse(&text, &path.display().to_string())
     }
 
     /// Pretty JSON of this scenario (round-trips through [`Scenario::from_json`]).
@@ -315,6 +363,19 @@ impl Scenario {
         } else {
             Err(ScenarioError::Invalid(v.issues))
         }
+    }
+}
+
+/// What a JSON text starting with `first` holds at its top level, if `first` can start
+/// one: used to say what a scenario file holds instead of an object.
+fn json_kind(first: char) -> Option<&'static str> {
+    match first {
+        '[' => Some("an array"),
+        '"' => Some("a string"),
+        't' | 'f' => Some("a boolean"),
+        'n' => Some("null"),
+        '-' | '0'..='9' => Some("a number"),
+        _ => None,
     }
 }
 

@@ -20,6 +20,7 @@ mod pipeline_from_outside;
 mod properties;
 mod readings;
 mod record;
+mod scenario_input;
 mod scenarios;
 mod self_contained;
 mod signals;
