@@ -75,6 +75,29 @@ pub struct LazyBody<'a> {
     pub t_ref: &'a mut f64,
 }
 
+impl<'a> LazyBody<'a> {
+    /// A body's components as [`bring_to`] advances them.
+    pub fn of(
+        position: &'a mut Position,
+        velocity: &Velocity,
+        mass: &Mass,
+        radius: &Radius,
+        temperature: &'a mut Temperature,
+        hardness: &'a mut Hardness,
+        local_time: &'a mut LocalTime,
+    ) -> Self {
+        LazyBody {
+            position: &mut position.0,
+            velocity: velocity.0,
+            mass: mass.0,
+            radius: radius.0,
+            temperature: &mut temperature.0,
+            hardness: &mut hardness.0,
+            t_ref: &mut local_time.0,
+        }
+    }
+}
+
 /// Bring one body from its reference time to `now` in place; returns the heat it lost
 /// by cooling [J] (for the energy ledger).
 pub fn bring_to(now: f64, clockwork: &Clockwork, body: LazyBody) -> f64 {
@@ -263,19 +286,8 @@ fn apply(
     events.touch(entity, Totals::of_body(m.0, v.0, t.0, c));
     let mut tally = Tally::default();
     if lazy {
-        tally.cooling_loss = bring_to(
-            now,
-            clockwork,
-            LazyBody {
-                position: &mut p.0,
-                velocity: v.0,
-                mass: m.0,
-                radius: b.0,
-                temperature: &mut t.0,
-                hardness: &mut h.0,
-                t_ref: &mut lt.0,
-            },
-        );
+        let lazy = LazyBody::of(&mut p, &v, m, b, &mut t, &mut h, &mut lt);
+        tally.cooling_loss = bring_to(now, clockwork, lazy);
     }
     // Energies before and after, computed as `contribution` computes them, so the
     // ledger moves by exactly the difference the diagnostics' running totals see.

@@ -556,15 +556,7 @@ impl Simulation {
             lost += bring_to(
                 now,
                 &clockwork,
-                LazyBody {
-                    position: &mut p.0,
-                    velocity: v.0,
-                    mass: m.0,
-                    radius: b.0,
-                    temperature: &mut t.0,
-                    hardness: &mut h.0,
-                    t_ref: &mut lt.0,
-                },
+                LazyBody::of(&mut p, v, m, b, &mut t, &mut h, &mut lt),
             );
         }
         self.world.resource_mut::<EnergyLedger>().cooling_loss += lost;

@@ -213,19 +213,8 @@ pub fn pop_due_contacts(
         let before_b = Totals::of_body(b.3.0, b.2.0, b.5.0, heat_capacity);
         for body in [&mut a, &mut b] {
             let (_, p, v, m, r, t, h, lt) = body;
-            ledger.cooling_loss += bring_to(
-                now,
-                &clockwork,
-                LazyBody {
-                    position: &mut p.0,
-                    velocity: v.0,
-                    mass: m.0,
-                    radius: r.0,
-                    temperature: &mut t.0,
-                    hardness: &mut h.0,
-                    t_ref: &mut lt.0,
-                },
-            );
+            let lazy = LazyBody::of(p, v, m, r, t, h, lt);
+            ledger.cooling_loss += bring_to(now, &clockwork, lazy);
         }
         let reach = a.4.0 + b.4.0;
         let separation = core.contact_separation(a.1.0, b.1.0, reach, a.2.0 - b.2.0);
