@@ -3,6 +3,8 @@
 //! derives from (seed, generation[, string, sample]), the state holds no random
 //! generator; a resumed run repeats exactly what the uninterrupted run would do.
 //! Floats are written with round-trip precision, so the restored state is bit-identical.
+//! The file carries a CRC-32 of its content: a flipped digit, a lost line or any other
+//! change is refused on `--resume` instead of resuming with altered state.
 
 use std::path::Path;
 
@@ -18,6 +20,10 @@ const FORMAT: &str = "agglo-inverse-checkpoint-1";
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Checkpoint {
     pub format: String,
+    /// `crc32:` and the CRC-32 (hex) of this checkpoint's JSON without this field.
+    /// Absent only in checkpoints written before checksums; those still load.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checksum: Option<String>,
     /// The inverse file as parsed and the resolved base scenario: a resume must match both.
     pub spec: Value,
     pub base: Value,
@@ -28,14 +34,30 @@ impl Checkpoint {
     pub fn new(problem: &InverseProblem, state: &GaState) -> Self {
         Self {
             format: FORMAT.into(),
+            checksum: None,
             spec: serde_json::to_value(&problem.spec).unwrap_or(Value::Null),
             base: problem.base_value().clone(),
             state: state.clone(),
         }
     }
 
+    /// `crc32:` and the CRC-32 of the JSON of this checkpoint without its checksum.
+    fn content_checksum(&self) -> Result<String, InverseError> {
+        let body = Checkpoint {
+            checksum: None,
+            ..self.clone()
+        };
+        let text = serde_json::to_string(&body)
+            .map_err(|e| InverseError::Checkpoint(format!("serialising the checkpoint: {e}")))?;
+        Ok(format!("crc32:{:08x}", crc32fast::hash(text.as_bytes())))
+    }
+
     pub fn save(&self, dir: &Path) -> Result<(), InverseError> {
-        let text = serde_json::to_string(self)
+        let sealed = Checkpoint {
+            checksum: Some(self.content_checksum()?),
+            ..self.clone()
+        };
+        let text = serde_json::to_string(&sealed)
             .map_err(|e| InverseError::Checkpoint(format!("serialising the checkpoint: {e}")))?;
         let tmp = dir.join(format!("{FILE}.tmp"));
         let io = |source, path: &Path| InverseError::Io {
@@ -56,6 +78,17 @@ impl Checkpoint {
         let cp: Checkpoint = serde_json::from_str(&text).map_err(|e| {
             InverseError::Checkpoint(format!("{}: not a valid checkpoint: {e}", path.display()))
         })?;
+        if let Some(written) = &cp.checksum {
+            let now = cp.content_checksum()?;
+            if *written != now {
+                return Err(InverseError::Checkpoint(format!(
+                    "{}: the content does not match its checksum ({written} written, {now} now): \
+                     the file was changed or damaged after it was written; resume from an intact \
+                     copy or start again without --resume",
+                    path.display()
+                )));
+            }
+        }
         if cp.format != FORMAT {
             return Err(InverseError::Checkpoint(format!(
                 "{}: format `{}`, expected `{FORMAT}`",

@@ -258,6 +258,65 @@ fn resume_after_interruption_gives_the_same_final_files() {
 }
 
 #[test]
+fn a_checkpoint_with_a_flipped_digit_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let file = write_tiny(tmp.path(), 4);
+    let dir = tmp.path().join("out");
+    let optimize = |resume: bool| {
+        let mut c = agglo();
+        c.arg("optimize")
+            .arg(&file)
+            .arg("--out")
+            .arg(&dir)
+            .arg("-q");
+        if resume {
+            c.arg("--resume");
+        } else {
+            c.args(["--stop-after", "2"]);
+        }
+        c.output().unwrap()
+    };
+    assert!(optimize(false).status.success());
+    let path = dir.join("checkpoint.json");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        text.contains("\"checksum\":\"crc32:"),
+        "no checksum written"
+    );
+    // Flip one digit of the GA state (the first digit after `"state"`): still valid JSON
+    // and a valid checkpoint, but not the one that was written.
+    let state_at = text.find("\"state\"").unwrap();
+    let (k, digit) = text[state_at..]
+        .char_indices()
+        .find(|(_, c)| c.is_ascii_digit())
+        .map(|(k, c)| (state_at + k, c))
+        .unwrap();
+    let flipped = if digit == '9' {
+        '8'
+    } else {
+        (digit as u8 + 1) as char
+    };
+    let mut damaged = text.clone();
+    damaged.replace_range(k..k + 1, &flipped.to_string());
+    std::fs::write(&path, &damaged).unwrap();
+    let out = optimize(true);
+    assert!(!out.status.success(), "a damaged checkpoint was resumed");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("checkpoint.json: the content does not match its checksum"),
+        "{stderr}"
+    );
+    // The intact file resumes.
+    std::fs::write(&path, &text).unwrap();
+    let out = optimize(true);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
 fn best_string_rerun_through_agglo_run_reproduces_its_cost() {
     let tmp = tempfile::tempdir().unwrap();
     let file = write_tiny(tmp.path(), 3);
