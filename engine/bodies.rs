@@ -251,6 +251,10 @@ struct Tally {
     work_turnover: f64,
     /// Thermal energy the change made, m C (θ_after − θ_before).
     heat: f64,
+    /// Momentum the change made, m (v_after − v_before) [kg m/s].
+    impulse: DVec3,
+    /// |m (v_after − v_before)|, summed per body [kg m/s].
+    impulse_turnover: f64,
 }
 
 impl Tally {
@@ -259,6 +263,8 @@ impl Tally {
         self.work += other.work;
         self.work_turnover += other.work_turnover;
         self.heat += other.heat;
+        self.impulse += other.impulse;
+        self.impulse_turnover += other.impulse_turnover;
     }
 
     fn enter(&self, ledger: &mut EnergyLedger) {
@@ -266,6 +272,9 @@ impl Tally {
         ledger.force_work += self.work;
         ledger.force_work_turnover += self.work_turnover;
         ledger.external_heat += self.heat;
+        let impulse = DVec3::from_array(ledger.force_impulse) + self.impulse;
+        ledger.force_impulse = impulse.to_array();
+        ledger.force_impulse_turnover += self.impulse_turnover;
     }
 }
 
@@ -293,6 +302,7 @@ fn apply(
     // ledger moves by exactly the difference the diagnostics' running totals see.
     let before = Totals::of_body(m.0, v.0, t.0, c);
     let mut state = BodyState::from((id, &*p, &*v, m, b, &*t, &*h, n));
+    let velocity_before = v.0;
     change(&mut state);
     p.0 = clockwork.geometry.wrap(state.position);
     v.0 = state.velocity;
@@ -304,5 +314,7 @@ fn apply(
     tally.work = after.kinetic - before.kinetic;
     tally.work_turnover = tally.work.abs();
     tally.heat = after.thermal - before.thermal;
+    tally.impulse = m.0 * (v.0 - velocity_before);
+    tally.impulse_turnover = tally.impulse.length();
     tally
 }

@@ -131,6 +131,15 @@ pub struct EnergyLedger {
     /// Σ m C (θ_after − θ_before) over every body they changed [J] (negative if they cool).
     #[serde(default)]
     pub external_heat: f64,
+    /// Impulse of external forces [kg m/s]: the momentum extensions changed through
+    /// [`crate::bodies::Bodies`], Σ m (v_after − v_before) over every body they changed.
+    /// The momentum check compares P − P0 with it (docs/model.md §10).
+    #[serde(default)]
+    pub force_impulse: [f64; 3],
+    /// Σ m |v_after − v_before| over the same changes [kg m/s]: the momentum forces moved,
+    /// part of the momentum check's scale.
+    #[serde(default)]
+    pub force_impulse_turnover: f64,
     /// Heat the reading `impact.work_heat = "twice"` (P04 (6.10)) adds on top of the
     /// dissipation: the dissipated energy counted a second time, i.e. created [J].
     #[serde(default)]
