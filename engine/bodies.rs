@@ -23,6 +23,7 @@ use crate::components::{
     Temperature, Velocity,
 };
 use crate::laws::cooling::CoolingLaw;
+use crate::params::SceneConstants;
 use crate::resources::{BoxGeometry, EnergyLedger, LazyState, SimClock, StepEvents};
 use crate::scene::{CoolingMethod, Material, Physics};
 use crate::totals::Totals;
@@ -52,6 +53,13 @@ impl<'a> Clockwork<'a> {
             return theta;
         }
         CoolingLaw::for_body(self.material, mass, radius).advance(theta, dt)
+    }
+}
+
+impl SceneConstants<'_> {
+    /// What bringing a body of this scene forward needs.
+    pub fn clockwork(&self) -> Clockwork<'_> {
+        Clockwork::new(&self.geometry, &self.material, &self.options)
     }
 }
 
@@ -167,9 +175,7 @@ type BodyData = (
 pub struct Bodies<'w, 's> {
     query: Query<'w, 's, BodyData, With<Particle>>,
     clock: Res<'w, SimClock>,
-    geometry: Res<'w, BoxGeometry>,
-    material: Res<'w, Material>,
-    options: Res<'w, Physics>,
+    scene: SceneConstants<'w>,
     lazy: Res<'w, LazyState>,
     ledger: ResMut<'w, EnergyLedger>,
     events: ResMut<'w, StepEvents>,
@@ -202,7 +208,7 @@ impl Bodies<'_, '_> {
         if !self.lazy.0 {
             return Some(state);
         }
-        let clockwork = Clockwork::new(&self.geometry, &self.material, &self.options);
+        let clockwork = self.scene.clockwork();
         Some(state_at(&state, lt.0, self.clock.time, &clockwork))
     }
 
@@ -211,7 +217,7 @@ impl Bodies<'_, '_> {
     pub fn update(&mut self, entity: Entity, change: impl FnOnce(&mut BodyState)) -> bool {
         let now = self.clock.time;
         let lazy = self.lazy.0;
-        let clockwork = Clockwork::new(&self.geometry, &self.material, &self.options);
+        let clockwork = self.scene.clockwork();
         let Ok(row) = self.query.get_mut(entity) else {
             return false;
         };
@@ -224,7 +230,7 @@ impl Bodies<'_, '_> {
     pub fn update_all(&mut self, mut change: impl FnMut(&mut BodyState)) {
         let now = self.clock.time;
         let lazy = self.lazy.0;
-        let clockwork = Clockwork::new(&self.geometry, &self.material, &self.options);
+        let clockwork = self.scene.clockwork();
         let mut tally = Tally::default();
         for row in self.query.iter_mut() {
             tally.add(&apply(

@@ -14,7 +14,8 @@
 
 use bevy_ecs::prelude::*;
 
-use agglo_engine::scene::{Material, TimeControl};
+use agglo_engine::params::SceneConstants;
+use agglo_engine::scene::Material;
 use bevy_ecs::system::SystemParam;
 use glam::DVec3;
 use schemars::JsonSchema;
@@ -94,15 +95,14 @@ impl FromWorld for InitialEnergies {
     }
 }
 
-/// What a check reads (its settings, the material, the clock and end time, the ledger and the
+/// What a check reads (its settings, the scene's constants, the clock, the ledger and the
 /// energies at t = 0) and where it records what it finds (the report and the violation
 /// counter): one system parameter for both check systems.
 #[derive(SystemParam)]
 pub struct Checks<'w, 's> {
     settings: Res<'w, Diagnostics>,
-    material: Res<'w, Material>,
+    scene: SceneConstants<'w>,
     clock: Res<'w, SimClock>,
-    time: Res<'w, TimeControl>,
     ledger: Res<'w, EnergyLedger>,
     initial: Local<'s, InitialEnergies>,
     report: ResMut<'w, InvariantReport>,
@@ -114,7 +114,7 @@ pub fn check_invariants(mut checks: Checks, bodies: TotalsQuery) {
     let clock = *checks.clock;
     // clock.step is the index of the step being finished; check after every `every`-th.
     if !(clock.step + 1).is_multiple_of(checks.settings.every)
-        && clock.time + clock.dt < checks.time.end
+        && clock.time + clock.dt < checks.scene.time.end
     {
         return;
     }
@@ -271,7 +271,7 @@ pub fn check_step_totals(
     mut seen: Local<Vec<(Entity, Totals)>>,
 ) {
     let clock = *checks.clock;
-    let c = checks.material.C;
+    let c = checks.scene.material.C;
     seen.clear();
     seen.extend_from_slice(&events.touched);
     // The first record of each body is its state before the step changed it.
@@ -300,7 +300,7 @@ pub fn check_step_totals(
         running.add(before, -1.0);
     }
     checks.record(violations);
-    let last = clock.time + clock.dt >= checks.time.end;
+    let last = clock.time + clock.dt >= checks.scene.time.end;
     if (clock.step + 1).is_multiple_of(running.full_every) || last {
         // Full recomputation: also catches a change no system reported.
         checks.check_now(&bodies);
@@ -392,7 +392,7 @@ impl Checks<'_, '_> {
         self.record(violations);
         let now = totals(
             bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)),
-            self.material.C,
+            self.scene.material.C,
         );
         self.compare(&now);
     }
