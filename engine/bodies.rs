@@ -1,10 +1,12 @@
 //! Bodies at the current time: the one way to read or write a body (docs/model.md §4).
 //!
 //! The event core keeps each body's state at its own reference time t_ref
-//! ([`LocalTime`]): position, temperature and hardness are brought up to the current
-//! time only when something reads them. [`bring_to`] does that in place (drift with
-//! periodic wrap, then cooling over the whole interval with the accurate integrator of
-//! docs/model.md §8); [`state_at`] computes the same without writing (snapshots).
+//! ([`LocalTime`]): position, temperature and hardness (and, in a field, velocity) are
+//! brought up to the current time only when something reads them. [`bring_to`] does
+//! that in place (flight with periodic wrap — a straight line, or the field's closed
+//! form, docs/model.md §4.7 — then cooling over the whole interval with the accurate
+//! integrator of docs/model.md §8); [`state_at`] computes the same without writing
+//! (snapshots).
 //!
 //! Extensions read and write bodies through the [`Bodies`] system parameter: every
 //! body it hands out is at the current time, and every body it changes is reported to
@@ -22,6 +24,7 @@ use crate::components::{
     BodyState, Hardness, LocalTime, Mass, Particle, ParticleId, Position, Primaries, Radius,
     Temperature, Velocity,
 };
+use crate::field::Field;
 use crate::laws::cooling::CoolingLaw;
 use crate::params::SceneConstants;
 use crate::resources::{BoxGeometry, EnergyLedger, LazyState, SimClock, StepEvents};
@@ -29,13 +32,15 @@ use crate::scene::{CoolingMethod, Material, Physics};
 use crate::totals::Totals;
 
 /// What bringing a body forward needs: the box, the material (borrowed from the
-/// scene's resources) and whether the scene cools.
+/// scene's resources), whether the scene cools, and the field bodies fly in.
 #[derive(Debug, Clone, Copy)]
 pub struct Clockwork<'a> {
     pub geometry: &'a BoxGeometry,
     pub material: &'a Material,
     /// True when the scene cools (ε > 0 or hc > 0, cooling not off).
     pub cools: bool,
+    /// The field, if the scene has one that moves bodies (None: straight flights).
+    pub field: Option<&'a Field>,
 }
 
 impl<'a> Clockwork<'a> {
@@ -44,7 +49,14 @@ impl<'a> Clockwork<'a> {
             geometry,
             material,
             cools: material.cools() && options.cooling != CoolingMethod::Off,
+            field: None,
         }
+    }
+
+    /// The same, with bodies flying in `field` (ignored when it exerts no force).
+    pub fn with_field(mut self, field: Option<&'a Field>) -> Self {
+        self.field = field.filter(|f| f.kind() != crate::field::FieldKind::None);
+        self
     }
 
     /// Temperature after `dt` [s] of cooling from θ [K] (exact to ~1e-12).
@@ -60,17 +72,18 @@ impl SceneConstants<'_> {
     /// What bringing a body of this scene forward needs.
     pub fn clockwork(&self) -> Clockwork<'_> {
         Clockwork::new(&self.geometry, &self.material, &self.options)
+            .with_field(self.field.as_deref())
     }
 }
 
 /// One body on the event core as [`bring_to`] sees it: what changes as it is brought
-/// forward (position, temperature, hardness, reference time) and what does not
-/// (velocity, mass, radius) between impacts.
+/// forward (position, temperature, hardness, reference time, and velocity in a field)
+/// and what does not (mass, radius) between impacts.
 pub struct LazyBody<'a> {
     /// Position at `t_ref` [m].
     pub position: &'a mut DVec3,
-    /// Velocity [m/s].
-    pub velocity: DVec3,
+    /// Velocity at `t_ref` [m/s].
+    pub velocity: &'a mut DVec3,
     /// Mass [kg].
     pub mass: f64,
     /// Radius [m].
@@ -87,7 +100,7 @@ impl<'a> LazyBody<'a> {
     /// A body's components as [`bring_to`] advances them.
     pub fn of(
         position: &'a mut Position,
-        velocity: &Velocity,
+        velocity: &'a mut Velocity,
         mass: &Mass,
         radius: &Radius,
         temperature: &'a mut Temperature,
@@ -96,7 +109,7 @@ impl<'a> LazyBody<'a> {
     ) -> Self {
         LazyBody {
             position: &mut position.0,
-            velocity: velocity.0,
+            velocity: &mut velocity.0,
             mass: mass.0,
             radius: radius.0,
             temperature: &mut temperature.0,
@@ -106,14 +119,66 @@ impl<'a> LazyBody<'a> {
     }
 }
 
-/// Bring one body from its reference time to `now` in place; returns the heat it lost
-/// by cooling [J] (for the energy ledger).
-pub fn bring_to(now: f64, clockwork: &Clockwork, body: LazyBody) -> f64 {
+/// What bringing a body forward moved, for the energy ledger (docs/model.md §10).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Brought {
+    /// Heat lost by cooling [J].
+    pub cooling_loss: f64,
+    /// Kinetic energy the field made, ½ m (|v_after|² − |v_before|²) [J].
+    pub work: f64,
+    /// Momentum the field made, m (v_after − v_before) [kg m/s].
+    pub impulse: DVec3,
+}
+
+impl Brought {
+    /// Add another body's account.
+    pub fn add(&mut self, other: &Brought) {
+        self.cooling_loss += other.cooling_loss;
+        self.work += other.work;
+        self.impulse += other.impulse;
+    }
+
+    /// Enter it in the ledger: cooling as cooling loss, the field's work and impulse as
+    /// force work and force impulse (with their turnovers, the checks' scales). The
+    /// turnovers are the account's own absolute values: enter one body at a time, or
+    /// a sum whose parts share their signs, to keep them tight.
+    pub fn enter(&self, ledger: &mut EnergyLedger) {
+        ledger.cooling_loss += self.cooling_loss;
+        if self.work != 0.0 || self.impulse != DVec3::ZERO {
+            ledger.force_work += self.work;
+            ledger.force_work_turnover += self.work.abs();
+            let impulse = DVec3::from_array(ledger.force_impulse) + self.impulse;
+            ledger.force_impulse = impulse.to_array();
+            ledger.force_impulse_turnover += self.impulse.length();
+        }
+    }
+}
+
+/// Bring one body from its reference time to `now` in place; returns what that moved
+/// in the energy ledger (the heat it lost by cooling, the field's work and impulse).
+pub fn bring_to(now: f64, clockwork: &Clockwork, body: LazyBody) -> Brought {
     let dt = now - *body.t_ref;
     if dt <= 0.0 {
-        return 0.0;
+        return Brought::default();
     }
-    *body.position = clockwork.geometry.wrap(*body.position + body.velocity * dt);
+    let mut brought = Brought::default();
+    match clockwork.field {
+        None => {
+            *body.position = clockwork
+                .geometry
+                .wrap(*body.position + *body.velocity * dt)
+        }
+        Some(field) => {
+            let before = *body.velocity;
+            let (x, v) = field
+                .flight(body.mass, body.radius)
+                .advance(*body.position, before, dt);
+            *body.position = clockwork.geometry.wrap(x);
+            *body.velocity = v;
+            brought.work = 0.5 * body.mass * (v.length_squared() - before.length_squared());
+            brought.impulse = body.mass * (v - before);
+        }
+    }
     let before = *body.temperature;
     let after = clockwork.cooled(before, body.mass, body.radius, dt);
     if after != before {
@@ -121,7 +186,8 @@ pub fn bring_to(now: f64, clockwork: &Clockwork, body: LazyBody) -> f64 {
         *body.hardness = clockwork.material.hardness(after);
     }
     *body.t_ref = now;
-    body.mass * clockwork.material.C * (before - after)
+    brought.cooling_loss = body.mass * clockwork.material.C * (before - after);
+    brought
 }
 
 /// A body's state at `now` without changing it (for snapshots and summaries).
@@ -133,7 +199,7 @@ pub fn state_at(body: &BodyState, t_ref: f64, now: f64, clockwork: &Clockwork) -
         clockwork,
         LazyBody {
             position: &mut b.position,
-            velocity: body.velocity,
+            velocity: &mut b.velocity,
             mass: body.mass,
             radius: body.radius,
             temperature: &mut b.temperature,
@@ -179,7 +245,17 @@ pub struct Bodies<'w, 's> {
     lazy: Res<'w, LazyState>,
     ledger: ResMut<'w, EnergyLedger>,
     events: ResMut<'w, StepEvents>,
+    /// Marks a system as reading bodies through `Bodies` (see [`BodiesGate`]).
+    _gate: Res<'w, BodiesGate>,
 }
+
+/// The mark of [`Bodies`]: a system that reads this resource reads bodies through
+/// `Bodies`. On the event core, `SimBuilder::build` refuses an extension system that
+/// queries a body's time-dependent state (position, velocity, temperature, hardness,
+/// reference time) without it: such a query would see each body at its own reference
+/// time, not now (docs/model.md §4). Not for reading by hand.
+#[derive(Resource, Debug, Default, Clone, Copy)]
+pub struct BodiesGate;
 
 impl Bodies<'_, '_> {
     /// The current time t [s].
@@ -300,9 +376,11 @@ fn apply(
     let c = clockwork.material.C;
     events.touch(entity, Totals::of_body(m.0, v.0, t.0, c));
     let mut tally = Tally::default();
+    let mut flown = Brought::default();
     if lazy {
-        let lazy = LazyBody::of(&mut p, &v, m, b, &mut t, &mut h, &mut lt);
-        tally.cooling_loss = bring_to(now, clockwork, lazy);
+        let lazy = LazyBody::of(&mut p, &mut v, m, b, &mut t, &mut h, &mut lt);
+        flown = bring_to(now, clockwork, lazy);
+        tally.cooling_loss = flown.cooling_loss;
     }
     // Energies before and after, computed as `contribution` computes them, so the
     // ledger moves by exactly the difference the diagnostics' running totals see.
@@ -322,5 +400,13 @@ fn apply(
     tally.heat = after.thermal - before.thermal;
     tally.impulse = m.0 * (v.0 - velocity_before);
     tally.impulse_turnover = tally.impulse.length();
+    // The field's flight up to now is force work and impulse too (each with its own
+    // turnover: it and the change need not share a sign).
+    if flown.work != 0.0 || flown.impulse != DVec3::ZERO {
+        tally.work += flown.work;
+        tally.work_turnover += flown.work.abs();
+        tally.impulse += flown.impulse;
+        tally.impulse_turnover += flown.impulse.length();
+    }
     tally
 }

@@ -16,6 +16,7 @@
 //! - [`setup`], [`scene`], [`cloud`], [`error`]: the [`setup::Scene`] a run is built
 //!   from, the sections of it the engine owns (box, material, time, physics), the initial
 //!   cloud and its section, and the typed errors;
+//! - [`field`]: the fields the cores fly exactly (uniform g, linear drag), the `field` section;
 //! - [`params`]: system parameters grouping what a stage reads and writes together;
 //! - [`observables`], [`totals`]: what a run measures (docs/model.md §10, §11).
 //!
@@ -26,6 +27,7 @@ pub mod bodies;
 pub mod cloud;
 pub mod components;
 pub mod error;
+pub mod field;
 pub mod laws;
 pub mod observables;
 pub mod params;
@@ -45,6 +47,7 @@ pub mod prelude {
     pub use crate::bodies::Bodies;
     pub use crate::components::*;
     pub use crate::error::{ScenarioError, SimError};
+    pub use crate::field::{Drag, Field, Relaxation};
     pub use crate::observables::{Growth, RadiusStats, Summary};
     pub use crate::params::{RunBooks, SceneConstants};
     pub use crate::resources::{Counters, EnergyLedger, SimClock};

@@ -6,11 +6,12 @@ use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
 
 use crate::cloud::PrimaryGrain;
+use crate::field::Field;
 use crate::resources::{BoxGeometry, Counters, EnergyLedger, SimClock, StateChanged, StepEvents};
 use crate::scene::{Material, Physics, TimeControl};
 
 /// The scene's constants, read only: the material and its primary grain, the periodic
-/// box, the physics options and the time control.
+/// box, the physics options, the time control and the field.
 #[derive(SystemParam)]
 pub struct SceneConstants<'w> {
     pub material: Res<'w, Material>,
@@ -18,6 +19,8 @@ pub struct SceneConstants<'w> {
     pub time: Res<'w, TimeControl>,
     pub geometry: Res<'w, BoxGeometry>,
     pub options: Res<'w, Physics>,
+    /// The field bodies fly in between events, if the scene has one.
+    pub field: Option<Res<'w, Field>>,
 }
 
 /// The run's books that a stage changing bodies writes: the clock (and its flags),

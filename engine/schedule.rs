@@ -11,12 +11,13 @@
 
 use std::ops::ControlFlow;
 
+use bevy_ecs::component::ComponentId;
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleThreadedExecutor};
 use bevy_ecs::system::ScheduleSystem;
 use serde::{Deserialize, Serialize};
 
-use crate::bodies::{Clockwork, LazyBody, bring_to, state_at};
+use crate::bodies::{BodiesGate, Brought, Clockwork, LazyBody, bring_to, state_at};
 use crate::cloud::PrimaryGrain;
 use crate::cloud::generate_cloud;
 use crate::components::{
@@ -24,6 +25,7 @@ use crate::components::{
     Temperature, Velocity,
 };
 use crate::error::SimError;
+use crate::field::Field;
 use crate::resources::*;
 use crate::scene::{Material, Physics, TimeControl, uses_event_core};
 use crate::setup::Scene;
@@ -113,6 +115,10 @@ pub struct Pipeline {
     /// One line per system left out: which and why, said by the plugin that decided,
     /// e.g. `fragmentation off: γ = ∞ (material.gamma = null)`.
     pub left_out: Vec<String>,
+    /// The fields and forces bodies feel between events, each with the path it takes
+    /// on the core (docs/model.md §4.7); empty without any.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub forces: Vec<String>,
 }
 
 /// Who a run is: what its summary and recording are labelled with.
@@ -137,6 +143,8 @@ pub struct SimBuilder {
     core_reason: String,
     left_out: Vec<String>,
     core_stats: Option<fn(&World) -> EventStats>,
+    /// Work left for [`SimBuilder::build`], once every plugin has had its say.
+    finishers: Vec<Box<dyn FnOnce(&mut World)>>,
 }
 
 impl SimBuilder {
@@ -191,6 +199,7 @@ impl SimBuilder {
         world.init_resource::<ImpactRecords>();
         world.init_resource::<StateChanged>();
         world.init_resource::<StepEvents>();
+        world.init_resource::<BodiesGate>();
         world.insert_resource(LazyState(uses_event_core(time, physics)));
 
         let mut schedule = Schedule::new(SimStep);
@@ -214,7 +223,25 @@ impl SimBuilder {
             core_reason: String::new(),
             left_out: Vec::new(),
             core_stats: None,
+            finishers: Vec::new(),
         })
+    }
+
+    /// Have bodies fly in `field` between events (uniform g, linear drag; docs/model.md
+    /// §4.7), replacing the scene's `field` section. Both cores fly it exactly; on the
+    /// event core it costs nothing per event (g) or a short root search per predicted
+    /// pair (drag), where a force system ([`Self::add_force_systems`]) costs a kick to
+    /// every body every step. May be called before or after the built-in plugins.
+    pub fn set_field(&mut self, field: crate::field::Field) -> &mut Self {
+        self.world.insert_resource(field);
+        self
+    }
+
+    /// Run `finish` on the world when [`Self::build`] is called, after every plugin has
+    /// been built (e.g. a core that must see every setting, the field among them).
+    pub fn when_built(&mut self, finish: impl FnOnce(&mut World) + 'static) -> &mut Self {
+        self.finishers.push(Box::new(finish));
+        self
     }
 
     /// A resource of the world being built, e.g. the section of the scene a plugin owns
@@ -330,9 +357,16 @@ impl SimBuilder {
     /// Finish: the runnable simulation. Fails if the pipeline is ill-formed (e.g. two
     /// systems in one stage touching the same data without an order between them).
     pub fn build(mut self) -> Result<Simulation, SimError> {
+        for finish in std::mem::take(&mut self.finishers) {
+            finish(&mut self.world);
+        }
         if let Err(e) = self.schedule.initialize(&mut self.world) {
             let message = e.to_string(self.schedule.graph(), &self.world);
             return Err(SimError::Schedule(message));
+        }
+        if self.uses_event_core() {
+            let extension_slots = [StepSystems::First, StepSystems::Last];
+            refuse_stale_reads(&self.schedule, &extension_slots, &self.world)?;
         }
         let mut systems: Vec<String> = self
             .schedule
@@ -345,6 +379,9 @@ impl SimBuilder {
             if let Err(e) = forces.initialize(&mut self.world) {
                 let message = e.to_string(forces.graph(), &self.world);
                 return Err(SimError::Schedule(message));
+            }
+            if self.uses_event_core() {
+                refuse_stale_reads(&forces, &[], &self.world)?;
             }
             // List the force systems where they run: in place of their runner.
             let names: Vec<String> = forces
@@ -367,6 +404,7 @@ impl SimBuilder {
             core_reason: self.core_reason,
             systems,
             left_out: self.left_out,
+            forces: forces_text(self.world.get_resource::<Field>(), has_forces),
         };
         Ok(Simulation {
             world: self.world,
@@ -379,6 +417,77 @@ impl SimBuilder {
             wall_seconds: 0.0,
         })
     }
+}
+
+/// On the event core, refuse a system that queries a body's time-dependent state without
+/// [`crate::bodies::Bodies`] (docs/model.md §4: it would read each body at its own
+/// reference time, not now, silently). Checked for the systems of `slots` — the stages
+/// open to extensions — or, with no slots, every system of `schedule` (the forces).
+/// Exclusive systems (`&mut World`) cannot be inspected and are let through.
+fn refuse_stale_reads(
+    schedule: &Schedule,
+    slots: &[StepSystems],
+    world: &World,
+) -> Result<(), SimError> {
+    let Some(gate) = world.component_id::<BodiesGate>() else {
+        return Ok(());
+    };
+    let lazy: Vec<(ComponentId, &str)> = [
+        (world.component_id::<Position>(), "Position"),
+        (world.component_id::<Velocity>(), "Velocity"),
+        (world.component_id::<Temperature>(), "Temperature"),
+        (world.component_id::<Hardness>(), "Hardness"),
+        (world.component_id::<LocalTime>(), "LocalTime"),
+    ]
+    .into_iter()
+    .filter_map(|(id, name)| Some((id?, name)))
+    .collect();
+    let mut in_slots = std::collections::HashSet::new();
+    for slot in slots {
+        if let Ok(keys) = schedule.graph().systems_in_set(slot.intern()) {
+            in_slots.extend(keys.iter().copied());
+        }
+    }
+    let systems = schedule
+        .systems_with_access()
+        .map_err(|e| SimError::Schedule(format!("{e:?}")))?;
+    for (key, system) in systems {
+        if !slots.is_empty() && !in_slots.contains(&key) {
+            continue;
+        }
+        let bevy_ecs::system::SystemAccess::Shared(access) = system.access() else {
+            continue;
+        };
+        let access = access.combined_access();
+        if access.has_read(gate) {
+            continue; // reads bodies through `Bodies`
+        }
+        let stale: Vec<&str> = lazy
+            .iter()
+            .filter(|(id, _)| access.has_read(*id) || access.has_write(*id))
+            .map(|(_, name)| *name)
+            .collect();
+        if !stale.is_empty() {
+            return Err(SimError::Schedule(format!(
+                "system `{}` queries {} directly, but this scene runs on the event core, where                  each body holds its state at its own reference time (docs/model.md §4): the                  query would read stale state. Read and write bodies through the `Bodies`                  system parameter (agglo::bodies::Bodies), which brings each body to the                  current time and has the event core re-predict what changes; or run the scene                  on the stepped core (time.core = \"stepped\")",
+                short_name(&system.name().to_string()),
+                stale.join(", ")
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The fields and forces of a scene and the path each takes (for [`Pipeline::forces`]).
+fn forces_text(field: Option<&Field>, has_force_systems: bool) -> Vec<String> {
+    let mut lines: Vec<String> = field.and_then(Field::describe).into_iter().collect();
+    if has_force_systems {
+        lines.push(
+            "general forces (SimBuilder::add_force_systems): a kick to every body it changes              at the start of each step, over the step just taken — the slow path: O(N) per              step on either core, accurate to O(Δt) (Δt ≤ time.stepping.adaptive.dt_max);              declare uniform g or linear drag as a field instead"
+                .into(),
+        );
+    }
+    lines
 }
 
 /// `agglo::systems::drift::drift` → `drift::drift`.
@@ -541,25 +650,35 @@ impl Simulation {
         let geometry = *self.world.resource::<BoxGeometry>();
         let material = *self.world.resource::<Material>();
         let physics = *self.world.resource::<Physics>();
-        let clockwork = Clockwork::new(&geometry, &material, &physics);
-        let mut lost = 0.0;
+        let field = self.world.get_resource::<Field>().copied();
+        let clockwork = Clockwork::new(&geometry, &material, &physics).with_field(field.as_ref());
+        let mut ledger = *self.world.resource::<EnergyLedger>();
         let mut query = self.world.query_filtered::<(
             &mut Position,
-            &Velocity,
+            &mut Velocity,
             &Mass,
             &Radius,
             &mut Temperature,
             &mut Hardness,
             &mut LocalTime,
         ), With<Particle>>();
-        for (mut p, v, m, b, mut t, mut h, mut lt) in query.iter_mut(&mut self.world) {
-            lost += bring_to(
+        let mut lost = 0.0;
+        for (mut p, mut v, m, b, mut t, mut h, mut lt) in query.iter_mut(&mut self.world) {
+            let brought = bring_to(
                 now,
                 &clockwork,
-                LazyBody::of(&mut p, v, m, b, &mut t, &mut h, &mut lt),
+                LazyBody::of(&mut p, &mut v, m, b, &mut t, &mut h, &mut lt),
             );
+            lost += brought.cooling_loss;
+            // The field's account body by body (its turnovers are per body).
+            Brought {
+                cooling_loss: 0.0,
+                ..brought
+            }
+            .enter(&mut ledger);
         }
-        self.world.resource_mut::<EnergyLedger>().cooling_loss += lost;
+        ledger.cooling_loss += lost;
+        *self.world.resource_mut::<EnergyLedger>() = ledger;
     }
 
     fn clockwork(&self) -> Clockwork<'_> {
@@ -568,6 +687,7 @@ impl Simulation {
             self.world.resource::<Material>(),
             self.world.resource::<Physics>(),
         )
+        .with_field(self.world.get_resource::<Field>())
     }
 
     /// Every body, sorted by stable id (from a shared reference, so observers of

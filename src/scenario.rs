@@ -23,6 +23,7 @@ pub use crate::output::Output;
 pub use crate::record::Recording;
 use crate::schedule::{Pipeline, Simulation};
 pub use agglo_engine::cloud::{Cloud, PlacedBody, VelocityDistribution};
+pub use agglo_engine::field::{Drag, Field, Relaxation};
 pub use agglo_engine::resources::BoxGeometry as Domain;
 use agglo_engine::scene::event_core_needs;
 pub use agglo_engine::scene::{
@@ -58,6 +59,10 @@ pub struct Scenario {
     pub time: TimeControl,
     #[serde(default)]
     pub physics: Physics,
+    /// Forces every body feels between events: uniform g, linear gas drag
+    /// (docs/model.md §4.7). None when absent.
+    #[serde(default, skip_serializing_if = "Field::is_none")]
+    pub field: Field,
     #[serde(default)]
     pub diagnostics: Diagnostics,
     #[serde(default)]
@@ -357,6 +362,7 @@ impl Scenario {
             v.positive("output.recording.interval", dt);
         }
         v.positive("output.recording.playback_seconds", r.playback_seconds);
+        v.issues.extend(self.field.issues());
 
         if v.issues.is_empty() {
             Ok(())
@@ -503,6 +509,9 @@ impl Scene for Scenario {
     fn insert_settings(&self, world: &mut World) {
         world.insert_resource(self.impact);
         world.insert_resource(self.diagnostics.clone());
+        if !self.field.is_none() {
+            world.insert_resource(self.field);
+        }
         world.insert_resource(self.clone());
     }
 }

@@ -1,16 +1,49 @@
-//! Stage 7 — drift: r ← r + Δt v (P02 (9), P04 after (6.21)). No external forces.
+//! Stage 7 — drift: r ← r + Δt v (P02 (9), P04 after (6.21)), or, in a field, each body
+//! along its closed-form flight over Δt (docs/model.md §4.7): a parabola under uniform
+//! g, the drag flight under linear drag. The field's work and impulse go into the
+//! energy ledger as force work and force impulse.
 //!
-//! Reads: Δt, velocities. Writes: positions.
+//! Reads: Δt, velocities, the field. Writes: positions (and velocities in a field), the
+//! ledger.
 
 use bevy_ecs::prelude::*;
+use glam::DVec3;
 
-use agglo_engine::components::{Particle, Position, Velocity};
-use agglo_engine::resources::SimClock;
+use agglo_engine::components::{Mass, Particle, Position, Radius, Velocity};
+use agglo_engine::field::{Field, FieldKind};
+use agglo_engine::resources::{EnergyLedger, SimClock};
 
 /// The system.
-pub fn drift(clock: Res<SimClock>, mut bodies: Query<(&mut Position, &Velocity), With<Particle>>) {
+pub fn drift(
+    clock: Res<SimClock>,
+    field: Option<Res<Field>>,
+    mut ledger: ResMut<EnergyLedger>,
+    mut bodies: Query<(&mut Position, &mut Velocity, &Mass, &Radius), With<Particle>>,
+) {
     let dt = clock.dt;
-    for (mut p, v) in &mut bodies {
-        p.0 += dt * v.0;
+    let field = field.filter(|f| f.kind() != FieldKind::None);
+    let Some(field) = field else {
+        for (mut p, v, _, _) in &mut bodies {
+            p.0 += dt * v.0;
+        }
+        return;
+    };
+    let (mut work, mut work_turnover) = (0.0, 0.0);
+    let (mut impulse, mut impulse_turnover) = (DVec3::ZERO, 0.0);
+    for (mut p, mut v, m, b) in &mut bodies {
+        let before = v.0;
+        let (x, after) = field.flight(m.0, b.0).advance(p.0, before, dt);
+        p.0 = x;
+        v.0 = after;
+        let w = 0.5 * m.0 * (after.length_squared() - before.length_squared());
+        let j = m.0 * (after - before);
+        work += w;
+        work_turnover += w.abs();
+        impulse += j;
+        impulse_turnover += j.length();
     }
+    ledger.force_work += work;
+    ledger.force_work_turnover += work_turnover;
+    ledger.force_impulse = (DVec3::from_array(ledger.force_impulse) + impulse).to_array();
+    ledger.force_impulse_turnover += impulse_turnover;
 }

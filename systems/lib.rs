@@ -46,12 +46,15 @@ impl SimPlugin for ContactPlugin {
         sim.explain_core(why);
         if sim.uses_event_core() {
             let brute_force = time.core == Core::EventsBruteForce;
-            let core = events::build_core(sim.world_mut(), brute_force);
-            sim.insert_resource(core)
-                .add_systems(StepSystems::Contact, events::pop_due_contacts)
-                .add_systems(StepSystems::TimeStep, events::schedule_next_step)
-                .add_systems(StepSystems::Boundary, events::report_overlaps)
-                .report_core_stats(|world| world.resource::<events::core::EventCore>().stats);
+            // Built last, so that it sees every setting (a field set by an extension).
+            sim.when_built(move |world| {
+                let core = events::build_core(world, brute_force);
+                world.insert_resource(core);
+            })
+            .add_systems(StepSystems::Contact, events::pop_due_contacts)
+            .add_systems(StepSystems::TimeStep, events::schedule_next_step)
+            .add_systems(StepSystems::Boundary, events::report_overlaps)
+            .report_core_stats(|world| world.resource::<events::core::EventCore>().stats);
             return;
         }
         sim.init_resource::<contact::NeighbourTable>()

@@ -467,6 +467,35 @@ impl CellGrid {
         best
     }
 
+    /// Time until a gridded body at position `x` leaves its own-level cell along a curved
+    /// path: `leave(axis, offset, width)` gives, for one axis, when the coordinate at
+    /// `offset` inside a cell of `width` [m] leaves it and by which side (0: not before
+    /// that time — ask again then). The earliest over the axes; None for whole-box bodies
+    /// or one that never leaves.
+    pub fn crossing_by(
+        &self,
+        slot: u32,
+        x: DVec3,
+        leave: impl Fn(usize, f64, f64) -> Option<(f64, i8)>,
+    ) -> Option<(f64, u8, i8)> {
+        let own = self.level_of(slot)? as usize;
+        if own == self.levels.len() {
+            return None;
+        }
+        let rel = self.offset_in_cell(slot, own, x);
+        let w = self.levels[own].width;
+        let mut best: Option<(f64, u8, i8)> = None;
+        for axis in 0..3 {
+            if let Some((t, step)) = leave(axis, rel[axis], w) {
+                let t = t.max(0.0);
+                if best.is_none_or(|b| t < b.0) {
+                    best = Some((t, axis as u8, step));
+                }
+            }
+        }
+        best
+    }
+
     /// Call `visit(partner, how)` for every body that could touch `slot` (never `slot`
     /// itself). `alive` lists every present slot (used only for a whole-box body).
     pub fn for_each_candidate(

@@ -4,16 +4,28 @@
 //! benchmarked alone; `super` connects it to the world.
 //!
 //! A slot holds a copy of a body's trajectory — position (wrapped into the box) and
-//! velocity at its reference time t_ref, and its radius — refreshed whenever the body
-//! is touched. Between touches a body moves ballistically, so any future position is
-//! r(t) = r_ref + v (t − t_ref), and predictions need no other state.
+//! velocity at its reference time t_ref, its radius and its drag relaxation time —
+//! refreshed whenever the body is touched. Between touches a body flies in closed form
+//! (docs/model.md §4.7): ballistically, r(t) = r_ref + v (t − t_ref), without a field;
+//! on a parabola in a uniform field g; along the drag flight of
+//! `agglo_engine::laws::flight` with drag. Predictions need no other state.
+//!
+//! **Fields.** Under uniform g the grid's frame falls with g: in that frame every body
+//! moves in a straight line, and two bodies move in a straight line relative to each
+//! other, so crossings and contacts are predicted exactly as without a field. Under
+//! drag the frame moves at the terminal velocity of a primary grain; crossings and
+//! contacts are found by the safeguarded search of `laws::flight` along the exact
+//! flights, limited to the body's next crossing (no later contact can be its next
+//! event), so the cost per event stays O(log N).
 
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 
 use super::calendar::{Calendar, Event, EventKind, permute_in_place};
 use super::cells::{CellGrid, Partner, round_fast};
+use agglo_engine::field::{Field, FieldKind};
 use agglo_engine::laws::contact_time::time_to_contact;
+use agglo_engine::laws::flight::{Flight, Search, contact_search, wall_crossing};
 use agglo_engine::laws::grid::IMAGES;
 use agglo_engine::resources::BoxGeometry;
 
@@ -57,6 +69,56 @@ fn contact_time(d: DVec3, u: DVec3, reach: f64) -> Option<f64> {
     Some(t)
 }
 
+/// The first contact along curved flights within `horizon` (see `laws::flight`), with
+/// the grazing rule of [`contact_time`]; `(t, true)` when the search was cut short and
+/// only says "not before t".
+#[inline]
+fn curved_contact_time(
+    d: DVec3,
+    va: DVec3,
+    vb: DVec3,
+    fa: &Flight,
+    fb: &Flight,
+    reach: f64,
+    horizon: f64,
+) -> Option<(f64, bool)> {
+    match contact_search(d, va, vb, fa, fb, reach, horizon) {
+        Search::At(t) => {
+            let u = vb - va;
+            if t == 0.0 && d.dot(u) > -GRAZING * d.length() * u.length() {
+                return None;
+            }
+            Some((t, false))
+        }
+        Search::NotBefore(t) => Some((t, true)),
+        Search::Clear => None,
+    }
+}
+
+/// [`newly_overlapping`] with the separation `before` known exactly (curved flights).
+#[inline]
+fn newly_overlapping_from(d: DVec3, before: DVec3, u: DVec3, reach: f64) -> bool {
+    d.dot(u) < 0.0
+        && d.length() < reach * (1.0 - DEEP_OVERLAP)
+        && before.length() >= reach * (1.0 - DEEP_OVERLAP)
+}
+
+/// Offer an event `t` [s] after `now` with tie-breaker `tie`: kept if it is earlier than
+/// the best so far (or as early with a smaller tie-breaker).
+#[inline]
+fn offer(best: &mut Option<(f64, u64, Event)>, now: f64, t: f64, tie: u64, kind: EventKind) {
+    if best.is_none_or(|(bt, btie, _)| t < bt || (t == bt && tie < btie)) {
+        *best = Some((
+            t,
+            tie,
+            Event {
+                time: now + t,
+                kind,
+            },
+        ));
+    }
+}
+
 /// One body's trajectory as the event core sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct Trajectory {
@@ -70,10 +132,12 @@ pub struct Trajectory {
     pub t_ref: f64,
     /// Radius [m].
     pub radius: f64,
+    /// Drag relaxation time τ [s] (∞ without drag).
+    pub tau: f64,
 }
 
 impl Trajectory {
-    /// Unwrapped position at time t [m].
+    /// Unwrapped position at time t [m] on a straight flight.
     #[inline]
     pub fn at(&self, t: f64) -> DVec3 {
         self.position + self.velocity * (t - self.t_ref)
@@ -90,6 +154,12 @@ pub struct EventCore {
     /// that a bulk drift (P04's v̄ = (10, 10, 100) m/s) causes no cell crossings. Any
     /// constant velocity is correct; only relative positions decide contacts.
     frame_velocity: DVec3,
+    /// Acceleration of the grid's frame [m/s²]: g under a uniform field, so that every
+    /// body moves in a straight line in it; zero otherwise.
+    frame_acceleration: DVec3,
+    /// The field bodies fly in, and its kind.
+    field: Field,
+    kind: FieldKind,
     slots: Vec<Trajectory>,
     counters: Vec<u32>,
     alive: Vec<bool>,
@@ -142,6 +212,9 @@ impl EventCore {
         Self {
             half_width,
             frame_velocity,
+            frame_acceleration: DVec3::ZERO,
+            field: Field::default(),
+            kind: FieldKind::None,
             slots: Vec::with_capacity(bodies),
             counters: Vec::with_capacity(bodies),
             alive: Vec::with_capacity(bodies),
@@ -153,6 +226,53 @@ impl EventCore {
             predictions_at_renumber: 0,
             renumbering: true,
             stats: EventStats::default(),
+        }
+    }
+
+    /// Fly bodies in `field` (set before any body is inserted). Under uniform g the
+    /// grid's frame falls with g; under drag it moves at `frame_velocity`, which the
+    /// caller sets to the terminal velocity of a typical body.
+    pub fn set_field(&mut self, field: Field, frame_velocity: DVec3) {
+        self.kind = field.kind();
+        self.field = field;
+        match self.kind {
+            FieldKind::None => {}
+            FieldKind::Uniform => self.frame_acceleration = field.g(),
+            FieldKind::Drag => self.frame_velocity = frame_velocity,
+        }
+    }
+
+    /// A body's flight between events.
+    #[inline]
+    fn flight_of(&self, t: &Trajectory) -> Flight {
+        match self.kind {
+            FieldKind::None => Flight::Ballistic,
+            FieldKind::Uniform => Flight::Uniform {
+                g: self.frame_acceleration,
+            },
+            FieldKind::Drag => self.field.flight_with(t.tau),
+        }
+    }
+
+    /// Unwrapped position of a trajectory at `time` [m].
+    #[inline]
+    fn position_at(&self, t: &Trajectory, time: f64) -> DVec3 {
+        match self.kind {
+            FieldKind::None => t.at(time),
+            _ => {
+                self.flight_of(t)
+                    .advance(t.position, t.velocity, time - t.t_ref)
+                    .0
+            }
+        }
+    }
+
+    /// Velocity of a trajectory at `time` [m/s].
+    #[inline]
+    fn velocity_at(&self, t: &Trajectory, time: f64) -> DVec3 {
+        match self.kind {
+            FieldKind::None => t.velocity,
+            _ => self.flight_of(t).velocity(t.velocity, time - t.t_ref),
         }
     }
 
@@ -180,7 +300,11 @@ impl EventCore {
 
     /// Where the grid's frame has moved by time t, modulo the box [m].
     fn frame_shift(&self, t: f64) -> DVec3 {
-        let shift = self.frame_velocity * t;
+        let shift = if self.kind == FieldKind::Uniform {
+            self.frame_velocity * t + 0.5 * self.frame_acceleration * t * t
+        } else {
+            self.frame_velocity * t
+        };
         let side = self.side();
         let k = shift / side;
         shift - side * DVec3::new(round_fast(k.x), round_fast(k.y), round_fast(k.z))
@@ -188,7 +312,7 @@ impl EventCore {
 
     /// A trajectory's position at time t in the grid's moving frame [m].
     fn grid_position(&self, t: &Trajectory, time: f64) -> DVec3 {
-        t.at(time) - self.frame_shift(time)
+        self.position_at(t, time) - self.frame_shift(time)
     }
 
     fn min_image(&self, d: DVec3) -> DVec3 {
@@ -300,17 +424,19 @@ impl EventCore {
         let me = self.slots[slot as usize];
         // Positions in the grid's frame: relative positions are the same in any frame.
         let shift = self.frame_shift(now);
-        let x_me = me.at(now) - shift;
-        let mut best: Option<(f64, u64, Event)> = None;
-        let mut consider = |t: f64, tie: u64, kind: EventKind| {
-            let event = Event {
-                time: now + t,
-                kind,
-            };
-            if best.is_none_or(|(bt, btie, _)| t < bt || (t == bt && tie < btie)) {
-                best = Some((t, tie, event));
-            }
+        let x_me = self.position_at(&me, now) - shift;
+        let v_me = self.velocity_at(&me, now);
+        let curved = self.kind == FieldKind::Drag;
+        let f_me = self.flight_of(&me);
+        // Leaving the cell, found first: along a curved flight no contact later than it
+        // can be the next event, so it bounds the pair searches. It is offered last, so
+        // that a contact at the same time wins the tie.
+        let crossing = if self.brute_force {
+            None
+        } else {
+            self.next_crossing(slot, x_me, v_me, &me)
         };
+        let mut best: Option<(f64, u64, Event)> = None;
         let mut tests = 0u64;
         let mut deep = 0u64;
         // Largest relative speed to a partner paired through all images [m/s].
@@ -320,15 +446,40 @@ impl EventCore {
             let alive = &self.alive;
             let counters = &self.counters;
             let grid = &self.grid;
+            let core = &*self;
             // My offset inside my cell at each level, computed once per level.
             let mut rel_cache: [Option<DVec3>; 16] = [None; 16];
             let mut pair = |j: u32, how: Partner| {
                 let other = &slots[j as usize];
-                let x_other = other.at(now) - shift;
-                let u = other.velocity - me.velocity;
+                let x_other = core.position_at(other, now) - shift;
+                let v_other = core.velocity_at(other, now);
+                let u = v_other - v_me;
                 let reach = me.radius + other.radius;
                 let since = now - me.t_ref.max(other.t_ref);
-                let time = match how {
+                // Where the search may stop: the best event so far, or leaving the cell.
+                let horizon = best
+                    .map_or(f64::INFINITY, |(t, _, _)| t)
+                    .min(crossing.map_or(f64::INFINITY, |(t, _, _)| t));
+                let f_other = core.flight_of(other);
+                let search = |d: DVec3| {
+                    if curved {
+                        curved_contact_time(d, v_me, v_other, &f_me, &f_other, reach, horizon)
+                    } else {
+                        contact_time(d, u, reach).map(|t| (t, false))
+                    }
+                };
+                let missed = |d: DVec3| {
+                    if curved {
+                        let before = me.t_ref.max(other.t_ref);
+                        let moved = (core.position_at(other, now)
+                            - core.position_at(other, before))
+                            - (core.position_at(&me, now) - core.position_at(&me, before));
+                        newly_overlapping_from(d, d - moved, u, reach)
+                    } else {
+                        newly_overlapping(d, u, reach, since)
+                    }
+                };
+                let found = match how {
                     Partner::Cell { level, offset } => {
                         let k = level as usize;
                         let w = grid.width(k);
@@ -339,38 +490,50 @@ impl EventCore {
                             DVec3::new(offset[0] as f64, offset[1] as f64, offset[2] as f64);
                         let d = cells * w + rel_other - rel_me;
                         tests += 1;
-                        deep += newly_overlapping(d, u, reach, since) as u64;
-                        contact_time(d, u, reach)
+                        deep += missed(d) as u64;
+                        search(d)
                     }
                     Partner::AnyImage => {
-                        fastest_any_image = fastest_any_image.max(u.length());
-                        let side = 2.0 * self.half_width;
+                        let speed = if curved {
+                            f_me.speed_bound(v_me) + f_other.speed_bound(v_other)
+                        } else {
+                            u.length()
+                        };
+                        fastest_any_image = fastest_any_image.max(speed);
+                        let side = 2.0 * core.half_width;
                         let d0 = {
                             let d = x_other - x_me;
                             let k = d / side;
                             d - side * DVec3::new(round_fast(k.x), round_fast(k.y), round_fast(k.z))
                         };
-                        let mut earliest: Option<f64> = None;
+                        let mut earliest: Option<(f64, bool)> = None;
                         for image in IMAGES {
                             let d = d0 + side * image;
                             tests += 1;
-                            if let Some(t) = contact_time(d, u, reach) {
-                                deep += newly_overlapping(d, u, reach, since) as u64;
-                                earliest = Some(earliest.map_or(t, |e: f64| e.min(t)));
+                            if let Some(t) = search(d) {
+                                deep += missed(d) as u64;
+                                if earliest.is_none_or(|e| t.0 < e.0) {
+                                    earliest = Some(t);
+                                }
                             }
                         }
                         earliest
                     }
                 };
-                if let Some(t) = time {
-                    consider(
+                match found {
+                    Some((t, false)) => offer(
+                        &mut best,
+                        now,
                         t,
                         other.id,
                         EventKind::Contact {
                             slot: j,
                             counter: counters[j as usize],
                         },
-                    );
+                    ),
+                    // The search was cut short: no contact before t, look again then.
+                    Some((t, true)) => offer(&mut best, now, t, u64::MAX, EventKind::Refresh),
+                    None => {}
                 }
             };
             if self.brute_force {
@@ -388,19 +551,50 @@ impl EventCore {
         // displacement stays below half a box (b_i + b_j < L); refresh well before.
         if fastest_any_image > 0.0 {
             let horizon = REFRESH_FRACTION * self.side() / fastest_any_image;
-            consider(horizon, u64::MAX, EventKind::Refresh);
+            offer(&mut best, now, horizon, u64::MAX, EventKind::Refresh);
         }
         self.stats.pair_tests += tests;
         self.stats.deep_overlaps += deep;
-        if !self.brute_force
-            && let Some((t, axis, step)) =
-                self.grid
-                    .crossing(slot, x_me, me.velocity - self.frame_velocity)
-        {
+        if let Some((t, axis, step)) = crossing {
             // A contact at the same time wins the tie (u64::MAX): it is the physical event.
-            consider(t, u64::MAX, EventKind::Crossing { axis, step });
+            let kind = if step == 0 {
+                EventKind::Refresh // a curved search cut short: look again then
+            } else {
+                EventKind::Crossing { axis, step }
+            };
+            offer(&mut best, now, t, u64::MAX, kind);
         }
         best.map(|(_, _, e)| e)
+    }
+
+    /// When a gridded body at `x` (grid frame, now) with velocity `v` (now) leaves its
+    /// cell: a straight line in the grid's frame without a field or under uniform g (the
+    /// frame falls with g), the drag flight's safeguarded search under drag.
+    fn next_crossing(
+        &self,
+        slot: u32,
+        x: DVec3,
+        v: DVec3,
+        me: &Trajectory,
+    ) -> Option<(f64, u8, i8)> {
+        match self.kind {
+            FieldKind::None => self
+                .grid
+                .crossing(slot, x, me.velocity - self.frame_velocity),
+            // v(now) − (V + g now) = v_ref − g t_ref − V: constant in the falling frame.
+            FieldKind::Uniform => self.grid.crossing(
+                slot,
+                x,
+                me.velocity - self.frame_acceleration * me.t_ref - self.frame_velocity,
+            ),
+            FieldKind::Drag => {
+                let flight = self.flight_of(me);
+                let frame = self.frame_velocity;
+                self.grid.crossing_by(slot, x, |axis, offset, width| {
+                    wall_crossing(offset, v, &flight, frame[axis], axis, width, f64::INFINITY)
+                })
+            }
+        }
     }
 
     /// The periodic image of `b`'s centre, relative to `a`'s, of the contact due now at
@@ -462,7 +656,7 @@ impl EventCore {
             .live_slots()
             .map(|s| {
                 let t = &self.slots[s as usize];
-                let x = self.wrap(t.at(now) - shift);
+                let x = self.wrap(self.position_at(t, now) - shift);
                 (morton_key(x, self.half_width), t.id, s)
             })
             .collect();

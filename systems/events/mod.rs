@@ -24,6 +24,7 @@ pub mod core;
 use bevy_ecs::prelude::*;
 
 use agglo_engine::cloud::PrimaryGrain;
+use agglo_engine::field::Field;
 use agglo_engine::params::{RunBooks, SceneConstants};
 use agglo_engine::scene::TimeControl;
 use glam::DVec3;
@@ -46,7 +47,7 @@ type LazyQuery<'w, 's> = Query<
     (
         &'static ParticleId,
         &'static mut Position,
-        &'static Velocity,
+        &'static mut Velocity,
         &'static Mass,
         &'static Radius,
         &'static mut Temperature,
@@ -63,6 +64,7 @@ type ReadQuery<'w, 's> = Query<
         &'static ParticleId,
         &'static Position,
         &'static Velocity,
+        &'static Mass,
         &'static Radius,
         &'static LocalTime,
     ),
@@ -73,10 +75,13 @@ fn horizon(now: f64) -> f64 {
     now + SIMULTANEOUS * now.abs().max(f64::MIN_POSITIVE)
 }
 
-/// Build the core from the bodies in the world (at t = 0) and predict every body.
+/// Build the core from the bodies in the world (at t = 0) and predict every body; the
+/// scene's field, if any, decides how bodies fly (docs/model.md §4.7).
 pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
     let half_width = world.resource::<BoxGeometry>().half_width;
     let primary = world.resource::<PrimaryGrain>().radius;
+    let primary_mass = world.resource::<PrimaryGrain>().mass;
+    let field = world.get_resource::<Field>().copied().unwrap_or_default();
     // The grid moves with the cloud's mean velocity (see `EventCore`).
     let mut momentum = DVec3::ZERO;
     let mut mass = 0.0;
@@ -98,17 +103,19 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
             &ParticleId,
             &Position,
             &Velocity,
+            &Mass,
             &Radius,
             &LocalTime,
         ), With<Particle>>()
         .iter(world)
-        .map(|(e, id, p, v, r, t)| Trajectory {
+        .map(|(e, id, p, v, m, r, t)| Trajectory {
             entity: e,
             id: id.0,
             position: p.0,
             velocity: v.0,
             t_ref: t.0,
             radius: r.0,
+            tau: field.relaxation_time(m.0, r.0),
         })
         .collect();
     // Slots in Morton (Z-curve) order of position: bodies close in space get slots close
@@ -122,6 +129,13 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
         rows.len(),
         frame_velocity,
         brute_force,
+    );
+    // Under drag the grid moves at a primary grain's terminal velocity u + g τ0, so
+    // that settled primaries cross no cells.
+    let tau0 = field.relaxation_time(primary_mass, primary);
+    core.set_field(
+        field,
+        field.flight_with(tau0).velocity(DVec3::ZERO, f64::INFINITY),
     );
     let slots: Vec<u32> = rows.into_iter().map(|t| core.insert(t)).collect();
     for slot in slots {
@@ -144,6 +158,7 @@ pub fn pop_due_contacts(
         material,
         geometry,
         options,
+        field,
         ..
     } = scene;
     let RunBooks {
@@ -195,7 +210,7 @@ pub fn pop_due_contacts(
     // Ordered by ids; a pair predicted from both sides is one candidate.
     candidates.sort_unstable();
     candidates.dedup_by_key(|c| (c.0, c.1));
-    let clockwork = Clockwork::new(&geometry, &material, &options);
+    let clockwork = Clockwork::new(&geometry, &material, &options).with_field(field.as_deref());
     let heat_capacity = material.C;
     taken.clear();
     for &(_, _, sa, sb) in candidates.iter() {
@@ -213,8 +228,9 @@ pub fn pop_due_contacts(
         let before_b = Totals::of_body(b.3.0, b.2.0, b.5.0, heat_capacity);
         for body in [&mut a, &mut b] {
             let (_, p, v, m, r, t, h, lt) = body;
-            let lazy = LazyBody::of(p, v, m, r, t, h, lt);
-            ledger.cooling_loss += bring_to(now, &clockwork, lazy);
+            // Velocity changes only in a field; its change ticks are not used.
+            let lazy = LazyBody::of(p, v.bypass_change_detection(), m, r, t, h, lt);
+            bring_to(now, &clockwork, lazy).enter(&mut ledger);
         }
         let reach = a.4.0 + b.4.0;
         let separation = core.contact_separation(a.1.0, b.1.0, reach, a.2.0 - b.2.0);
@@ -242,8 +258,8 @@ pub fn pop_due_contacts(
 }
 
 /// A body's trajectory as the world holds it (None if the entity is gone).
-fn trajectory_of(bodies: &ReadQuery, entity: Entity) -> Option<Trajectory> {
-    let (id, p, v, r, lt) = bodies.get(entity).ok()?;
+fn trajectory_of(bodies: &ReadQuery, field: &Field, entity: Entity) -> Option<Trajectory> {
+    let (id, p, v, m, r, lt) = bodies.get(entity).ok()?;
     Some(Trajectory {
         entity,
         id: id.0,
@@ -251,11 +267,18 @@ fn trajectory_of(bodies: &ReadQuery, entity: Entity) -> Option<Trajectory> {
         velocity: v.0,
         t_ref: lt.0,
         radius: r.0,
+        tau: field.relaxation_time(m.0, r.0),
     })
 }
 
 /// File the step's changes in the core and re-predict the bodies they touched.
-fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuery, now: f64) {
+fn file_changes(
+    core: &mut EventCore,
+    events: &mut StepEvents,
+    bodies: &ReadQuery,
+    field: &Field,
+    now: f64,
+) {
     let start = events.filed;
     // The slots to re-predict gather in `repredict` (already holding those whose event a
     // step used up): a buffer kept across steps, so nothing is allocated per step.
@@ -266,7 +289,7 @@ fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuer
     events.filed_despawned = events.despawned.len();
     for k in events.filed_spawned..events.spawned.len() {
         let entity = events.spawned[k];
-        if let Some(trajectory) = trajectory_of(bodies, entity) {
+        if let Some(trajectory) = trajectory_of(bodies, field, entity) {
             affected.push(core.insert(trajectory));
         }
     }
@@ -275,7 +298,7 @@ fn file_changes(core: &mut EventCore, events: &mut StepEvents, bodies: &ReadQuer
     // partners' new counters.
     for k in start..events.touched.len() {
         let entity = events.touched[k].0;
-        let Some(now_t) = trajectory_of(bodies, entity) else {
+        let Some(now_t) = trajectory_of(bodies, field, entity) else {
             continue; // merged away or fragmented: already removed
         };
         let Some(slot) = core.slot_of(now_t.id) else {
@@ -349,9 +372,11 @@ pub fn schedule_next_step(
     time: Res<TimeControl>,
     bodies: ReadQuery,
     mut events: ResMut<StepEvents>,
+    field: Option<Res<Field>>,
 ) {
     let now = clock.time;
-    file_changes(&mut core, &mut events, &bodies, now);
+    let field = field.as_deref().copied().unwrap_or_default();
+    file_changes(&mut core, &mut events, &bodies, &field, now);
     let dt_max = time.stepping.dt_max();
     let limit = (now + dt_max).min(time.end);
     settle(&mut core, now, limit);
