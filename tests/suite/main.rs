@@ -14,6 +14,7 @@ mod determinism;
 mod energy_ledgers;
 mod events;
 mod extension;
+mod fields;
 mod inverse;
 mod layout;
 mod pipeline_from_outside;
