@@ -14,6 +14,7 @@ mod determinism;
 mod energy_ledgers;
 mod events;
 mod extension;
+mod hooks;
 mod inverse;
 mod layout;
 mod pipeline_from_outside;
