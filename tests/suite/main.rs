@@ -15,6 +15,7 @@ mod energy_ledgers;
 mod events;
 mod extension;
 mod fields;
+mod hooks;
 mod inverse;
 mod layout;
 mod pipeline_from_outside;
