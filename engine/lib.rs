@@ -16,12 +16,9 @@
 //! - [`setup`], [`scene`], [`cloud`], [`error`]: the [`setup::Scene`] a run is built
 //!   from, the sections of it the engine owns (box, material, time, physics), the initial
 //!   cloud and its section, and the typed errors;
-<<<<<<< HEAD
 //! - [`field`]: the fields the cores fly exactly (uniform g, linear drag), the `field` section;
-=======
 //! - [`hooks`]: typed messages at every impact, merge and fragmentation, for
 //!   extensions that subscribe;
->>>>>>> main
 //! - [`params`]: system parameters grouping what a stage reads and writes together;
 //! - [`observables`], [`totals`]: what a run measures (docs/model.md §10, §11).
 //!
@@ -32,11 +29,8 @@ pub mod bodies;
 pub mod cloud;
 pub mod components;
 pub mod error;
-<<<<<<< HEAD
 pub mod field;
-=======
 pub mod hooks;
->>>>>>> main
 pub mod laws;
 pub mod observables;
 pub mod params;
@@ -56,14 +50,11 @@ pub mod prelude {
     pub use crate::bodies::Bodies;
     pub use crate::components::*;
     pub use crate::error::{ScenarioError, SimError};
-<<<<<<< HEAD
     pub use crate::field::{Drag, Field, Relaxation};
-=======
     pub use crate::hooks::{
         FragmentMessage, ImpactMessage, ImpactOutcome, MergeMessage, MessageReader, MessageWriter,
         Messages,
     };
->>>>>>> main
     pub use crate::observables::{Growth, RadiusStats, Summary};
     pub use crate::params::{RunBooks, SceneConstants};
     pub use crate::resources::{Counters, EnergyLedger, SimClock};

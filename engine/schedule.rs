@@ -11,11 +11,8 @@
 
 use std::ops::ControlFlow;
 
-<<<<<<< HEAD
 use bevy_ecs::component::ComponentId;
-=======
 use bevy_ecs::message::{Message, Messages};
->>>>>>> main
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleThreadedExecutor};
 use bevy_ecs::system::ScheduleSystem;
@@ -147,13 +144,10 @@ pub struct SimBuilder {
     core_reason: String,
     left_out: Vec<String>,
     core_stats: Option<fn(&World) -> EventStats>,
-<<<<<<< HEAD
     /// Work left for [`SimBuilder::build`], once every plugin has had its say.
     finishers: Vec<Box<dyn FnOnce(&mut World)>>,
-=======
     /// Subscribed message types and the function that rotates each one's buffers.
     subscriptions: Vec<(std::any::TypeId, fn(&mut World))>,
->>>>>>> main
 }
 
 impl SimBuilder {
@@ -232,11 +226,8 @@ impl SimBuilder {
             core_reason: String::new(),
             left_out: Vec::new(),
             core_stats: None,
-<<<<<<< HEAD
             finishers: Vec::new(),
-=======
             subscriptions: Vec::new(),
->>>>>>> main
         })
     }
 
