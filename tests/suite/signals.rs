@@ -65,6 +65,32 @@ fn wait_until_running(mcap: &Path) {
     }
 }
 
+/// Wait until the recording holds at least one complete chunk. The writer streams each
+/// chunk to disk as it fills (about 1 MiB of messages before compression) and patches
+/// its header when it closes, so a file that has merely grown may hold only a torn
+/// first chunk: a run ended at once then leaves no channel to read.
+fn wait_for_a_complete_chunk(mcap: &Path) {
+    let start = Instant::now();
+    loop {
+        let out = Command::new(BIN)
+            .args(["inspect", "--json", s(mcap)])
+            .output()
+            .unwrap();
+        let chunks = serde_json::from_slice::<serde_json::Value>(&out.stdout)
+            .ok()
+            .and_then(|r| r["chunks"].as_u64())
+            .unwrap_or(0);
+        if chunks > 0 {
+            return;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no complete chunk within a minute"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 fn send(signal: &str, child: &Child) {
     let status = Command::new("kill")
         .args([&format!("-{signal}"), &child.id().to_string()])
@@ -134,7 +160,7 @@ fn sighup_stops_a_run_with_every_output_written() {
 fn a_second_signal_ends_the_run_at_once() {
     let dir = tempfile::tempdir().unwrap();
     let run = long_run(dir.path());
-    wait_until_running(&run.mcap);
+    wait_for_a_complete_chunk(&run.mcap);
     // Two different stop signals back to back (two of the same kind may merge into one
     // while pending): whichever is delivered first asks for a clean stop, the other ends
     // the process at once with 128 + its number (SIGINT 2, SIGTERM 15), not the clean
