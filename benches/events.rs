@@ -3,7 +3,10 @@
 //!
 //! - `bounce/N`: 2000 steps of the bouncing cloud from a fresh start (every step is one
 //!   impact: the time per step is the time per collision, pair solve included);
-//! - `merge/N`: the merging cloud run to T (every contact bonds; N − 1 events at most).
+//! - `merge/N`: the merging cloud run to T (every contact bonds; N − 1 events at most);
+//! - `field/…`: 2000 collisions of the bouncing cloud at N = 1e4 without a field, under
+//!   uniform g and under Epstein drag with settling (docs/model.md §4.7): the cost per
+//!   event a field adds on the event core (issue 17: within 1.5× of no field).
 //!
 //! Run: `cargo bench --bench events`. The figures are in the README's speed section.
 
@@ -71,5 +74,61 @@ fn merge(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bounce, merge);
+fn field(c: &mut Criterion) {
+    let steps = 2000u64;
+    let mut group = c.benchmark_group("field");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(10));
+    group.throughput(Throughput::Elements(steps));
+    let plain = peer("bounce", 10_000);
+    // τ0 = 1 ms for a primary (Epstein: τ = ρ b / (ρ_g v_th)); g τ0 = 10 m/s.
+    let (tau0, thermal_speed) = (1e-3, 400.0);
+    let rho_g = plain.material.rho * plain.primary_radius() / (tau0 * thermal_speed);
+    let fields = [
+        ("no field", Field::default()),
+        (
+            "uniform g",
+            Field {
+                gravity: [0.0, 0.0, -1e4],
+                drag: None,
+            },
+        ),
+        (
+            "Epstein drag + g",
+            Field {
+                gravity: [0.0, 0.0, -1e4],
+                drag: Some(Drag {
+                    gas_velocity: [0.0, 0.0, 0.0],
+                    relaxation: Relaxation::Epstein {
+                        gas_density: rho_g,
+                        thermal_speed,
+                    },
+                }),
+            },
+        ),
+    ];
+    for (name, f) in fields {
+        let mut scenario = plain.clone();
+        scenario.field = f;
+        group.bench_function(
+            format!("N=10000, {name}, {steps} collisions (elements = collisions)"),
+            |b| {
+                b.iter_batched(
+                    || Simulation::new(&scenario).unwrap(),
+                    |mut sim| {
+                        for _ in 0..steps {
+                            sim.step().unwrap();
+                        }
+                        sim.counters().impacts
+                    },
+                    BatchSize::PerIteration,
+                )
+            },
+        );
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bounce, merge, field);
 criterion_main!(benches);

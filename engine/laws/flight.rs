@@ -80,6 +80,7 @@ impl Flight {
         match *self {
             Flight::Ballistic => 0.0,
             Flight::Uniform { g } => g.length(),
+            Flight::Drag { terminal, tau } if s == 0.0 => (v0 - terminal).length() / tau,
             Flight::Drag { terminal, tau } => (v0 - terminal).length() / tau * (-s / tau).exp(),
         }
     }
@@ -156,11 +157,48 @@ pub fn contact_search(
             _ => Search::Clear,
         };
     }
+    // Same drag (equal τ, so equal terminal velocity): the relative velocity decays as
+    // e^(−s/τ) along a fixed direction, so the pair moves along a straight line with
+    // the "time" λ = τ (1 − e^(−s/τ)) < τ; contact at λ* means s = −τ ln(1 − λ*/τ).
+    if let (
+        Flight::Drag {
+            terminal: ca,
+            tau: ta,
+        },
+        Flight::Drag {
+            terminal: cb,
+            tau: tb,
+        },
+    ) = (fa, fb)
+        && ta == tb
+        && ca == cb
+    {
+        let tau = *ta;
+        return match time_to_contact(d, vb - va, reach) {
+            Some(lambda) if lambda < tau => {
+                let s = -tau * (-lambda / tau).ln_1p();
+                if s <= horizon {
+                    Search::At(s)
+                } else {
+                    Search::Clear
+                }
+            }
+            _ => Search::Clear,
+        };
+    }
     let tolerance = TOUCHING * reach + 4.0 * f64::EPSILON * d.length();
     let mut s = 0.0;
     for _ in 0..MAX_ITERATIONS {
-        let sep = d + fb.displacement(vb, s) - fa.displacement(va, s);
-        let w = fb.velocity(vb, s) - fa.velocity(va, s);
+        // At s = 0 the flights are where and as fast as they are now (no exponentials:
+        // most pairs are cleared by this first step).
+        let (sep, w) = if s == 0.0 {
+            (d, vb - va)
+        } else {
+            (
+                d + fb.displacement(vb, s) - fa.displacement(va, s),
+                fb.velocity(vb, s) - fa.velocity(va, s),
+            )
+        };
         let distance = sep.length();
         let gap = distance - reach;
         let rate = if distance > 0.0 {
@@ -198,33 +236,63 @@ pub fn contact_search(
     Search::NotBefore(s)
 }
 
-/// First time s ≥ 0 at which one coordinate, at `offset` inside a cell of width `width`
-/// [m] now, moving at `rate` [m/s] now relative to the cell, along `flight`'s component
-/// (`component`: 0, 1, 2) with the frame moving at `frame_velocity` [m/s], leaves
+/// First time s ≥ 0 at which one coordinate (`component`: 0, 1, 2) of a body at
+/// `offset` inside a cell of width `width` [m] now, with velocity `velocity` [m/s] now
+/// along `flight`, in a grid whose frame has velocity `frame_velocity` now along
+/// `frame`, leaves
 /// [0, width]; with the side it leaves by (+1 or −1). None when it never does (within
 /// `horizon`). A side of 0 means the search was cut short (a coordinate creeping along a
 /// wall): it does not leave before that time, and must be asked again from there.
+#[allow(clippy::too_many_arguments)] // one coordinate of two flights: body and frame
 pub fn wall_crossing(
     offset: f64,
     velocity: DVec3,
     flight: &Flight,
-    frame_velocity: f64,
+    frame_velocity: DVec3,
+    frame: &Flight,
     component: usize,
     width: f64,
     horizon: f64,
 ) -> Option<(f64, i8)> {
+    let q0 = velocity[component] - frame_velocity[component];
+    // The frame flies as the body does (same drag, or both straight): the coordinate
+    // moves along a line in λ = τ (1 − e^(−s/τ)) (or s), so the crossing is closed-form.
+    if flight == frame {
+        let lambda = if q0 > 0.0 {
+            (width - offset) / q0
+        } else if q0 < 0.0 {
+            offset / -q0
+        } else {
+            return None;
+        };
+        let s = match *flight {
+            Flight::Drag { tau, .. } if lambda < tau => -tau * (-lambda.max(0.0) / tau).ln_1p(),
+            Flight::Drag { .. } => return None,
+            _ => lambda.max(0.0),
+        };
+        return (s <= horizon).then_some((s, if q0 > 0.0 { 1 } else { -1 }));
+    }
     let mut s = 0.0;
     for _ in 0..MAX_ITERATIONS {
-        let moved = flight.displacement(velocity, s)[component] - frame_velocity * s;
-        let p = offset + moved;
-        let q = flight.velocity(velocity, s)[component] - frame_velocity;
+        let (p, q) = if s == 0.0 {
+            (offset, q0)
+        } else {
+            let moved = flight.displacement(velocity, s)[component]
+                - frame.displacement(frame_velocity, s)[component];
+            (
+                offset + moved,
+                flight.velocity(velocity, s)[component]
+                    - frame.velocity(frame_velocity, s)[component],
+            )
+        };
         if p >= width && q > 0.0 {
             return Some((s, 1));
         }
         if p <= 0.0 && q < 0.0 {
             return Some((s, -1));
         }
-        let accel = flight.acceleration_bound(velocity, s);
+        let accel =
+            flight.acceleration_bound(velocity, s) + frame.acceleration_bound(frame_velocity, s);
         // Each wall is a gap of its own (top: G = w − p, G' = −q; bottom: G = p, G' = q);
         // step by the safer of the two.
         let (top, bottom) = (safe_step(width - p, -q, accel), safe_step(p, q, accel));
@@ -353,10 +421,41 @@ mod tests {
     }
 
     #[test]
+    fn equal_drag_contact_matches_the_general_search() {
+        // Equal τ takes the closed form; a τ one part in 1e12 larger takes the search:
+        // the two agree to the search's tolerance.
+        let c = DVec3::new(0.0, 0.0, -2.0);
+        let (fa, fb) = (drag(1e-3, c), drag(1e-3, c));
+        let fb_near = drag(1e-3 * (1.0 + 1e-12), c);
+        let d = DVec3::new(1e-6, 2e-6, 6e-5);
+        let (va, vb) = (DVec3::new(0.0, 0.0, 0.3), DVec3::new(0.01, 0.0, -0.4));
+        let (Search::At(closed), Search::At(searched)) = (
+            contact_search(d, va, vb, &fa, &fb, 2e-5, 1.0),
+            contact_search(d, va, vb, &fa, &fb_near, 2e-5, 1.0),
+        ) else {
+            panic!("both meet")
+        };
+        assert!(
+            (closed - searched).abs() <= 1e-9 * closed,
+            "{closed} vs {searched}"
+        );
+    }
+
+    #[test]
     fn wall_crossing_matches_sampling() {
         let f = drag(1e-3, DVec3::new(0.0, 0.0, -2.0));
         // Moving up at first, turned back by the drag and the settling: leaves below.
-        let found = wall_crossing(0.4e-3, DVec3::new(0.0, 0.0, 1.0), &f, 0.0, 2, 1e-3, 1.0);
+        let still = Flight::Ballistic;
+        let found = wall_crossing(
+            0.4e-3,
+            DVec3::new(0.0, 0.0, 1.0),
+            &f,
+            DVec3::ZERO,
+            &still,
+            2,
+            1e-3,
+            1.0,
+        );
         let (s, side) = found.unwrap();
         assert_eq!(side, -1);
         let z = 0.4e-3 + f.displacement(DVec3::new(0.0, 0.0, 1.0), s).z;
@@ -370,5 +469,32 @@ mod tests {
             })
             .fold(f64::MIN, f64::max);
         assert!(top < 1e-3);
+        // In a frame that flies as the body does, the closed form; against a frame on
+        // a slightly different flight, the search: the two agree.
+        let frame_v = DVec3::new(0.0, 0.0, -0.5);
+        let closed = wall_crossing(
+            0.4e-3,
+            DVec3::new(0.0, 0.0, 1.0),
+            &f,
+            frame_v,
+            &f,
+            2,
+            1e-3,
+            1.0,
+        );
+        let near = drag(1e-3 * (1.0 + 1e-12), DVec3::new(0.0, 0.0, -2.0));
+        let searched = wall_crossing(
+            0.4e-3,
+            DVec3::new(0.0, 0.0, 1.0),
+            &f,
+            frame_v,
+            &near,
+            2,
+            1e-3,
+            1.0,
+        );
+        let ((a, sa), (b, sb)) = (closed.unwrap(), searched.unwrap());
+        assert_eq!((sa, sb), (1, 1));
+        assert!((a - b).abs() <= 1e-9 * a, "{a} vs {b}");
     }
 }

@@ -95,14 +95,6 @@ fn curved_contact_time(
     }
 }
 
-/// [`newly_overlapping`] with the separation `before` known exactly (curved flights).
-#[inline]
-fn newly_overlapping_from(d: DVec3, before: DVec3, u: DVec3, reach: f64) -> bool {
-    d.dot(u) < 0.0
-        && d.length() < reach * (1.0 - DEEP_OVERLAP)
-        && before.length() >= reach * (1.0 - DEEP_OVERLAP)
-}
-
 /// Offer an event `t` [s] after `now` with tie-breaker `tie`: kept if it is earlier than
 /// the best so far (or as early with a smaller tie-breaker).
 #[inline]
@@ -154,9 +146,11 @@ pub struct EventCore {
     /// that a bulk drift (P04's v̄ = (10, 10, 100) m/s) causes no cell crossings. Any
     /// constant velocity is correct; only relative positions decide contacts.
     frame_velocity: DVec3,
-    /// Acceleration of the grid's frame [m/s²]: g under a uniform field, so that every
-    /// body moves in a straight line in it; zero otherwise.
-    frame_acceleration: DVec3,
+    /// How the grid's frame flies from `frame_velocity` at t = 0: straight without a
+    /// field, falling with g under uniform g (every body then moves in a straight line in
+    /// it), as a primary grain under drag (relaxing to its terminal velocity, so the
+    /// cloud's bulk motion causes few crossings).
+    frame_flight: Flight,
     /// The field bodies fly in, and its kind.
     field: Field,
     kind: FieldKind,
@@ -212,7 +206,7 @@ impl EventCore {
         Self {
             half_width,
             frame_velocity,
-            frame_acceleration: DVec3::ZERO,
+            frame_flight: Flight::Ballistic,
             field: Field::default(),
             kind: FieldKind::None,
             slots: Vec::with_capacity(bodies),
@@ -229,17 +223,13 @@ impl EventCore {
         }
     }
 
-    /// Fly bodies in `field` (set before any body is inserted). Under uniform g the
-    /// grid's frame falls with g; under drag it moves at `frame_velocity`, which the
-    /// caller sets to the terminal velocity of a typical body.
-    pub fn set_field(&mut self, field: Field, frame_velocity: DVec3) {
+    /// Fly bodies in `field` (set before any body is inserted). The grid's frame flies
+    /// as a body of relaxation time `tau` [s] would (a primary grain's): under uniform g
+    /// it falls with g, under drag it relaxes to that body's terminal velocity.
+    pub fn set_field(&mut self, field: Field, tau: f64) {
         self.kind = field.kind();
         self.field = field;
-        match self.kind {
-            FieldKind::None => {}
-            FieldKind::Uniform => self.frame_acceleration = field.g(),
-            FieldKind::Drag => self.frame_velocity = frame_velocity,
-        }
+        self.frame_flight = field.flight_with(tau);
     }
 
     /// A body's flight between events.
@@ -247,9 +237,7 @@ impl EventCore {
     fn flight_of(&self, t: &Trajectory) -> Flight {
         match self.kind {
             FieldKind::None => Flight::Ballistic,
-            FieldKind::Uniform => Flight::Uniform {
-                g: self.frame_acceleration,
-            },
+            FieldKind::Uniform => self.frame_flight,
             FieldKind::Drag => self.field.flight_with(t.tau),
         }
     }
@@ -267,12 +255,14 @@ impl EventCore {
         }
     }
 
-    /// Velocity of a trajectory at `time` [m/s].
+    /// Unwrapped position [m] and velocity [m/s] of a trajectory at `time`.
     #[inline]
-    fn velocity_at(&self, t: &Trajectory, time: f64) -> DVec3 {
+    fn state_at(&self, t: &Trajectory, time: f64) -> (DVec3, DVec3) {
         match self.kind {
-            FieldKind::None => t.velocity,
-            _ => self.flight_of(t).velocity(t.velocity, time - t.t_ref),
+            FieldKind::None => (t.at(time), t.velocity),
+            _ => self
+                .flight_of(t)
+                .advance(t.position, t.velocity, time - t.t_ref),
         }
     }
 
@@ -300,10 +290,9 @@ impl EventCore {
 
     /// Where the grid's frame has moved by time t, modulo the box [m].
     fn frame_shift(&self, t: f64) -> DVec3 {
-        let shift = if self.kind == FieldKind::Uniform {
-            self.frame_velocity * t + 0.5 * self.frame_acceleration * t * t
-        } else {
-            self.frame_velocity * t
+        let shift = match self.kind {
+            FieldKind::None => self.frame_velocity * t,
+            _ => self.frame_flight.displacement(self.frame_velocity, t),
         };
         let side = self.side();
         let k = shift / side;
@@ -424,8 +413,8 @@ impl EventCore {
         let me = self.slots[slot as usize];
         // Positions in the grid's frame: relative positions are the same in any frame.
         let shift = self.frame_shift(now);
-        let x_me = self.position_at(&me, now) - shift;
-        let v_me = self.velocity_at(&me, now);
+        let (x_me, v_me) = self.state_at(&me, now);
+        let x_me = x_me - shift;
         let curved = self.kind == FieldKind::Drag;
         let f_me = self.flight_of(&me);
         // Leaving the cell, found first: along a curved flight no contact later than it
@@ -434,7 +423,7 @@ impl EventCore {
         let crossing = if self.brute_force {
             None
         } else {
-            self.next_crossing(slot, x_me, v_me, &me)
+            self.next_crossing(slot, x_me, v_me, &me, now)
         };
         let mut best: Option<(f64, u64, Event)> = None;
         let mut tests = 0u64;
@@ -451,8 +440,8 @@ impl EventCore {
             let mut rel_cache: [Option<DVec3>; 16] = [None; 16];
             let mut pair = |j: u32, how: Partner| {
                 let other = &slots[j as usize];
-                let x_other = core.position_at(other, now) - shift;
-                let v_other = core.velocity_at(other, now);
+                let (x_other, v_other) = core.state_at(other, now);
+                let x_other = x_other - shift;
                 let u = v_other - v_me;
                 let reach = me.radius + other.radius;
                 let since = now - me.t_ref.max(other.t_ref);
@@ -470,11 +459,17 @@ impl EventCore {
                 };
                 let missed = |d: DVec3| {
                     if curved {
+                        // Overlapping and approaching now, and not when the later of
+                        // the two was last changed (found along the flights, only for
+                        // a pair that overlaps now).
+                        if d.dot(u) >= 0.0 || d.length() >= reach * (1.0 - DEEP_OVERLAP) {
+                            return false;
+                        }
                         let before = me.t_ref.max(other.t_ref);
                         let moved = (core.position_at(other, now)
                             - core.position_at(other, before))
                             - (core.position_at(&me, now) - core.position_at(&me, before));
-                        newly_overlapping_from(d, d - moved, u, reach)
+                        (d - moved).length() >= reach * (1.0 - DEEP_OVERLAP)
                     } else {
                         newly_overlapping(d, u, reach, since)
                     }
@@ -576,22 +571,33 @@ impl EventCore {
         x: DVec3,
         v: DVec3,
         me: &Trajectory,
+        now: f64,
     ) -> Option<(f64, u8, i8)> {
         match self.kind {
             FieldKind::None => self
                 .grid
                 .crossing(slot, x, me.velocity - self.frame_velocity),
             // v(now) − (V + g now) = v_ref − g t_ref − V: constant in the falling frame.
-            FieldKind::Uniform => self.grid.crossing(
-                slot,
-                x,
-                me.velocity - self.frame_acceleration * me.t_ref - self.frame_velocity,
-            ),
+            FieldKind::Uniform => {
+                let g = self.field.g();
+                self.grid
+                    .crossing(slot, x, me.velocity - g * me.t_ref - self.frame_velocity)
+            }
             FieldKind::Drag => {
                 let flight = self.flight_of(me);
-                let frame = self.frame_velocity;
+                let frame = self.frame_flight;
+                let frame_now = frame.velocity(self.frame_velocity, now);
                 self.grid.crossing_by(slot, x, |axis, offset, width| {
-                    wall_crossing(offset, v, &flight, frame[axis], axis, width, f64::INFINITY)
+                    wall_crossing(
+                        offset,
+                        v,
+                        &flight,
+                        frame_now,
+                        &frame,
+                        axis,
+                        width,
+                        f64::INFINITY,
+                    )
                 })
             }
         }

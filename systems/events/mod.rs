@@ -130,13 +130,10 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
         frame_velocity,
         brute_force,
     );
-    // Under drag the grid moves at a primary grain's terminal velocity u + g τ0, so
-    // that settled primaries cross no cells.
+    // The grid's frame starts with the cloud's mean velocity and flies as a primary
+    // grain does (falls with g; under drag relaxes to u + g τ0 as the cloud does).
     let tau0 = field.relaxation_time(primary_mass, primary);
-    core.set_field(
-        field,
-        field.flight_with(tau0).velocity(DVec3::ZERO, f64::INFINITY),
-    );
+    core.set_field(field, tau0);
     let slots: Vec<u32> = rows.into_iter().map(|t| core.insert(t)).collect();
     for slot in slots {
         core.schedule(slot, 0.0);
