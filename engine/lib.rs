@@ -49,8 +49,8 @@ pub mod prelude {
     pub use crate::components::*;
     pub use crate::error::{ScenarioError, SimError};
     pub use crate::hooks::{
-        FragmentMessage, ImpactMessage, ImpactOutcome, MergeMessage, MessageReader, MessageWriter,
-        Messages,
+        FragmentMessage, ImpactMessage, ImpactOutcome, ImpactOutcomeSystems, MergeMessage,
+        MessageReader, MessageWriter, Messages, OutcomeChange, PendingImpact, PendingImpacts,
     };
     pub use crate::observables::{Growth, RadiusStats, Summary};
     pub use crate::params::{RunBooks, SceneConstants};

@@ -87,6 +87,7 @@ type FragmentQuery<'w, 's> = Query<
 >;
 
 /// The system.
+#[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
 pub fn fragment_bodies(
     records: Res<ImpactRecords>,
     scene: SceneConstants,

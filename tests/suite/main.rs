@@ -17,6 +17,7 @@ mod extension;
 mod hooks;
 mod inverse;
 mod layout;
+mod outcome;
 mod pipeline_from_outside;
 mod properties;
 mod readings;
