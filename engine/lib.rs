@@ -16,6 +16,8 @@
 //! - [`setup`], [`scene`], [`cloud`], [`error`]: the [`setup::Scene`] a run is built
 //!   from, the sections of it the engine owns (box, material, time, physics), the initial
 //!   cloud and its section, and the typed errors;
+//! - [`carried`]: per-body state an extension adds, carried through merges and
+//!   fragmentations by its rules;
 //! - [`hooks`]: typed messages at every impact, merge and fragmentation, for
 //!   extensions that subscribe;
 //! - [`params`]: system parameters grouping what a stage reads and writes together;
@@ -25,6 +27,7 @@
 //! `agglo` package (drivers and command line) on both. All quantities are SI and `f64`.
 
 pub mod bodies;
+pub mod carried;
 pub mod cloud;
 pub mod components;
 pub mod error;
@@ -46,6 +49,7 @@ pub use glam;
 /// run-state resources, the stages and the plugin API.
 pub mod prelude {
     pub use crate::bodies::Bodies;
+    pub use crate::carried::{Carried, Combine, Split};
     pub use crate::components::*;
     pub use crate::error::{ScenarioError, SimError};
     pub use crate::hooks::{

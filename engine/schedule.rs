@@ -365,6 +365,22 @@ impl SimBuilder {
         self
     }
 
+    /// Carry a per-body scalar component through merges and fragmentations
+    /// (engine/carried.rs): `combine` says what a merged body carries, `split` what each
+    /// piece of a fragmented body does; `name` is its column in `--final-state` and its
+    /// field in the recording's `/stats`. Registering a name again replaces its rules.
+    pub fn carry<C: crate::carried::Carried>(
+        &mut self,
+        name: &str,
+        combine: crate::carried::Combine,
+        split: crate::carried::Split,
+    ) -> &mut Self {
+        self.world
+            .get_resource_or_insert_with(crate::carried::CarriedState::default)
+            .register::<C>(name, combine, split);
+        self
+    }
+
     /// Build one plugin into the simulation.
     pub fn add_plugin(&mut self, plugin: &dyn SimPlugin) -> &mut Self {
         plugin.build(self);
@@ -702,6 +718,18 @@ impl Simulation {
             .get_resource::<Messages<M>>()
             .into_iter()
             .flat_map(|m| m.iter_current_update_messages())
+    }
+
+    /// The carried quantities an extension registered ([`SimBuilder::carry`]) of every
+    /// body, sorted by id (no columns when none is registered).
+    pub fn carried(&self) -> crate::carried::CarriedColumns {
+        crate::carried::carried_columns(&self.world)
+    }
+
+    /// Each carried quantity for the whole cloud, combined by its rule (empty when none
+    /// is registered).
+    pub fn carried_totals(&self) -> Vec<(String, f64)> {
+        crate::carried::carried_totals(&self.world)
     }
 
     /// Number of bodies now.

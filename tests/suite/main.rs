@@ -7,6 +7,7 @@
 
 mod common;
 
+mod carried;
 mod cli;
 mod closed_form;
 mod conservation;
