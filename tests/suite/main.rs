@@ -30,3 +30,4 @@ mod signals;
 mod stepping;
 mod study;
 mod unfinishable_runs;
+mod worked_examples;
