@@ -92,3 +92,102 @@ pub(crate) fn rotate<M: Message>(world: &mut World) {
         messages.update();
     }
 }
+
+/// The one place where an extension may change an impact's outcome before it is applied
+/// (docs/extending.md): systems added with
+/// [`crate::schedule::SimBuilder::add_impact_outcome_systems`] run in
+/// [`ImpactOutcomeSystems::Decide`], after the impact law has solved every contact of
+/// the step and before anything is applied, and may call [`PendingImpact::bond`] or
+/// [`PendingImpact::bounce`] on any entry of [`PendingImpacts`]. The impact stage then
+/// applies each outcome, recomputing a changed one from the law at the chosen
+/// restitution (velocities, heat, the pieces' absorbed energy), so that momentum and the
+/// energy ledgers (docs/model.md §10) stay right whatever the hook decides.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ImpactOutcomeSystems {
+    /// Extensions look at the pending impacts and change outcomes.
+    Decide,
+    /// The impact plugin applies them (and writes the [`ImpactMessage`]s).
+    Apply,
+}
+
+/// An outcome chosen by a hook in place of the law's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OutcomeChange {
+    /// The pair sticks: common velocity, and it merges if merging is on.
+    Bond,
+    /// The pair bounces with this restitution, clamped to [0, 1] (0: perfectly
+    /// inelastic along the normal, but no bond).
+    Bounce { restitution: f64 },
+}
+
+/// One impact of the step, solved but not yet applied.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PendingImpact {
+    /// What the law would do: the message the impact will write if nobody changes it
+    /// (pair ids, masses, radii, approach speeds, restitution, heat, outcome).
+    pub proposal: ImpactMessage,
+    /// The entities of `proposal.id_a` and `proposal.id_b`, to read extension
+    /// components (e.g. `Query<&Charge>::get(entity_a)`).
+    pub entity_a: Entity,
+    pub entity_b: Entity,
+    change: Option<OutcomeChange>,
+}
+
+impl PendingImpact {
+    /// An impact as the law solved it, unchanged (the impact stage makes these).
+    pub fn new(proposal: ImpactMessage, entity_a: Entity, entity_b: Entity) -> Self {
+        Self {
+            proposal,
+            entity_a,
+            entity_b,
+            change: None,
+        }
+    }
+    /// Make the pair stick.
+    pub fn bond(&mut self) {
+        self.change = Some(OutcomeChange::Bond);
+    }
+    /// Make the pair bounce with restitution `e` (clamped to [0, 1]).
+    pub fn bounce(&mut self, restitution: f64) {
+        self.change = Some(OutcomeChange::Bounce { restitution });
+    }
+    /// Undo a change: the law's outcome again.
+    pub fn keep(&mut self) {
+        self.change = None;
+    }
+    /// The change asked for, if any (the last call wins).
+    pub fn change(&self) -> Option<OutcomeChange> {
+        self.change
+    }
+}
+
+/// The impacts of the step awaiting their outcome, in resolution order (by stable ids).
+/// Present only when an extension added outcome systems; entries can be changed but
+/// not added, removed or reordered.
+#[derive(Resource, Debug, Default)]
+pub struct PendingImpacts {
+    impacts: Vec<PendingImpact>,
+}
+
+impl PendingImpacts {
+    pub fn iter(&self) -> std::slice::Iter<'_, PendingImpact> {
+        self.impacts.iter()
+    }
+    pub fn iter_mut(&mut self) -> std::slice::IterMut<'_, PendingImpact> {
+        self.impacts.iter_mut()
+    }
+    pub fn len(&self) -> usize {
+        self.impacts.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.impacts.is_empty()
+    }
+    /// For the impact stage: file an impact the law solved.
+    pub fn push(&mut self, impact: PendingImpact) {
+        self.impacts.push(impact);
+    }
+    /// For the impact stage: take the step's impacts to apply them.
+    pub fn take(&mut self) -> Vec<PendingImpact> {
+        std::mem::take(&mut self.impacts)
+    }
+}

@@ -17,6 +17,8 @@
 //!   from, the sections of it the engine owns (box, material, time, physics), the initial
 //!   cloud and its section, and the typed errors;
 //! - [`field`]: the fields the cores fly exactly (uniform g, linear drag), the `field` section;
+//! - [`carried`]: per-body state an extension adds, carried through merges and
+//!   fragmentations by its rules;
 //! - [`hooks`]: typed messages at every impact, merge and fragmentation, for
 //!   extensions that subscribe;
 //! - [`params`]: system parameters grouping what a stage reads and writes together;
@@ -26,6 +28,7 @@
 //! `agglo` package (drivers and command line) on both. All quantities are SI and `f64`.
 
 pub mod bodies;
+pub mod carried;
 pub mod cloud;
 pub mod components;
 pub mod error;
@@ -48,12 +51,13 @@ pub use glam;
 /// run-state resources, the stages and the plugin API.
 pub mod prelude {
     pub use crate::bodies::Bodies;
+    pub use crate::carried::{Carried, Combine, Split};
     pub use crate::components::*;
     pub use crate::error::{ScenarioError, SimError};
     pub use crate::field::{Drag, Field, Relaxation};
     pub use crate::hooks::{
-        FragmentMessage, ImpactMessage, ImpactOutcome, MergeMessage, MessageReader, MessageWriter,
-        Messages,
+        FragmentMessage, ImpactMessage, ImpactOutcome, ImpactOutcomeSystems, MergeMessage,
+        MessageReader, MessageWriter, Messages, OutcomeChange, PendingImpact, PendingImpacts,
     };
     pub use crate::observables::{Growth, RadiusStats, Summary};
     pub use crate::params::{RunBooks, SceneConstants};

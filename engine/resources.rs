@@ -84,6 +84,13 @@ pub struct Counters {
     pub overlap_violations: u64,
     /// Invariant checks that failed.
     pub invariant_violations: u64,
+    /// Impacts the TC model made elastic (constant restitution law only, docs/model.md §5.4).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub collapse_elastic: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// Event counts of the core (cheap, always on).
@@ -140,8 +147,9 @@ pub struct EnergyLedger {
     /// part of the momentum check's scale.
     #[serde(default)]
     pub force_impulse_turnover: f64,
-    /// Heat the reading `impact.work_heat = "twice"` (P04 (6.10)) adds on top of the
-    /// dissipation: the dissipated energy counted a second time, i.e. created [J].
+    /// Heat the reading `impact.work_heat` adds beyond the dissipation [J]: with `twice`
+    /// (P04 (6.10)) the dissipated energy counted a second time, i.e. created; with
+    /// `none` minus the dissipation, which left the bodies instead of heating them.
     #[serde(default)]
     pub double_counted_heat: f64,
 }

@@ -57,6 +57,9 @@ pub enum StepSystems {
     Contact,
     /// 2. Impact / heat solve for every contact (docs/model.md §5).
     Impact,
+    /// 2b. Outcome hooks: extensions may change the step's impact outcomes before they
+    /// are applied (empty unless one does: [`SimBuilder::add_impact_outcome_systems`]).
+    ImpactOutcome,
     /// 3. Merging of bonded pairs (docs/model.md §6).
     Merge,
     /// 4. Fragmentation of bodies that absorbed enough energy (docs/model.md §7).
@@ -77,11 +80,12 @@ pub enum StepSystems {
 
 impl StepSystems {
     /// Every stage, in pipeline order.
-    pub const ORDER: [StepSystems; 12] = [
+    pub const ORDER: [StepSystems; 13] = [
         StepSystems::First,
         StepSystems::Forces,
         StepSystems::Contact,
         StepSystems::Impact,
+        StepSystems::ImpactOutcome,
         StepSystems::Merge,
         StepSystems::Fragment,
         StepSystems::TimeStep,
@@ -133,6 +137,9 @@ pub struct RunInfo {
     pub initial_bodies: usize,
 }
 
+/// Swaps one subscribed message type's buffers (engine/hooks.rs).
+type Rotate = fn(&mut World);
+
 /// A world and schedule under construction.
 pub struct SimBuilder {
     world: World,
@@ -147,7 +154,11 @@ pub struct SimBuilder {
     /// Work left for [`SimBuilder::build`], once every plugin has had its say.
     finishers: Vec<Box<dyn FnOnce(&mut World)>>,
     /// Subscribed message types and the function that rotates each one's buffers.
-    subscriptions: Vec<(std::any::TypeId, fn(&mut World))>,
+    subscriptions: Vec<(std::any::TypeId, Rotate)>,
+    /// True once an extension added impact-outcome systems.
+    outcome_hooks: bool,
+    /// Adds the system that applies pending impact outcomes (the impact plugin's).
+    outcome_applier: Option<fn(&mut Schedule)>,
 }
 
 impl SimBuilder {
@@ -228,6 +239,8 @@ impl SimBuilder {
             core_stats: None,
             finishers: Vec::new(),
             subscriptions: Vec::new(),
+            outcome_hooks: false,
+            outcome_applier: None,
         })
     }
 
@@ -346,6 +359,55 @@ impl SimBuilder {
         self
     }
 
+    /// Add systems that may change impact outcomes before they are applied
+    /// ([`crate::hooks::ImpactOutcomeSystems::Decide`], in stage
+    /// [`StepSystems::ImpactOutcome`]): they edit [`crate::hooks::PendingImpacts`]. The
+    /// impact stage then solves every contact first and applies the outcomes after them,
+    /// which is exact because a body has at most one impact per step; a scene with
+    /// `physics.impacts_per_step = "every_contact"` refuses outcome systems at build.
+    pub fn add_impact_outcome_systems<M>(
+        &mut self,
+        systems: impl IntoScheduleConfigs<ScheduleSystem, M>,
+    ) -> &mut Self {
+        use crate::hooks::{ImpactOutcomeSystems, PendingImpacts};
+        if !self.outcome_hooks {
+            self.world.init_resource::<PendingImpacts>();
+            self.schedule.configure_sets(
+                (ImpactOutcomeSystems::Decide, ImpactOutcomeSystems::Apply)
+                    .chain()
+                    .in_set(StepSystems::ImpactOutcome),
+            );
+            self.outcome_hooks = true;
+        }
+        self.schedule
+            .add_systems(systems.in_set(ImpactOutcomeSystems::Decide));
+        self
+    }
+
+    /// For the plugin that resolves impacts: how to add its system applying pending
+    /// outcomes (in [`crate::hooks::ImpactOutcomeSystems::Apply`]), used at
+    /// [`SimBuilder::build`] only if an extension added outcome systems.
+    pub fn set_impact_outcome_applier(&mut self, add: fn(&mut Schedule)) -> &mut Self {
+        self.outcome_applier = Some(add);
+        self
+    }
+
+    /// Carry a per-body scalar component through merges and fragmentations
+    /// (engine/carried.rs): `combine` says what a merged body carries, `split` what each
+    /// piece of a fragmented body does; `name` is its column in `--final-state` and its
+    /// field in the recording's `/stats`. Registering a name again replaces its rules.
+    pub fn carry<C: crate::carried::Carried>(
+        &mut self,
+        name: &str,
+        combine: crate::carried::Combine,
+        split: crate::carried::Split,
+    ) -> &mut Self {
+        self.world
+            .get_resource_or_insert_with(crate::carried::CarriedState::default)
+            .register::<C>(name, combine, split);
+        self
+    }
+
     /// Build one plugin into the simulation.
     pub fn add_plugin(&mut self, plugin: &dyn SimPlugin) -> &mut Self {
         plugin.build(self);
@@ -377,6 +439,25 @@ impl SimBuilder {
     pub fn build(mut self) -> Result<Simulation, SimError> {
         for finish in std::mem::take(&mut self.finishers) {
             finish(&mut self.world);
+        }
+        if self.outcome_hooks {
+            if self.world.resource::<Physics>().impacts_per_step
+                != crate::scene::ImpactsPerStep::OnePerBody
+            {
+                return Err(SimError::Schedule(
+                    "impact-outcome systems need physics.impacts_per_step = \"one_per_body\" \
+                     (each body's impact solved once per step, so outcomes can wait for the hook)"
+                        .into(),
+                ));
+            }
+            let Some(add) = self.outcome_applier else {
+                return Err(SimError::Schedule(
+                    "impact-outcome systems were added but no plugin applies impact outcomes \
+                     (add the impact plugin)"
+                        .into(),
+                ));
+            };
+            add(&mut self.schedule);
         }
         if let Err(e) = self.schedule.initialize(&mut self.world) {
             let message = e.to_string(self.schedule.graph(), &self.world);
@@ -544,7 +625,7 @@ pub struct Simulation {
     core_stats: Option<fn(&World) -> EventStats>,
     wall_seconds: f64,
     /// Rotate the buffers of each subscribed message type (before each step).
-    rotations: Vec<fn(&mut World)>,
+    rotations: Vec<Rotate>,
 }
 
 impl Simulation {
@@ -757,6 +838,18 @@ impl Simulation {
             .get_resource::<Messages<M>>()
             .into_iter()
             .flat_map(|m| m.iter_current_update_messages())
+    }
+
+    /// The carried quantities an extension registered ([`SimBuilder::carry`]) of every
+    /// body, sorted by id (no columns when none is registered).
+    pub fn carried(&self) -> crate::carried::CarriedColumns {
+        crate::carried::carried_columns(&self.world)
+    }
+
+    /// Each carried quantity for the whole cloud, combined by its rule (empty when none
+    /// is registered).
+    pub fn carried_totals(&self) -> Vec<(String, f64)> {
+        crate::carried::carried_totals(&self.world)
     }
 
     /// Number of bodies now.

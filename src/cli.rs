@@ -13,7 +13,7 @@ mod inverse;
 mod ranks;
 mod signals;
 
-use agglo::output::{write_final_state, write_summary};
+use agglo::output::{write_final_state_with, write_summary};
 use agglo::prelude::*;
 use agglo::scenario::Stepping;
 use agglo::schedule::Pipeline;
@@ -376,7 +376,7 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     let bodies = sim.bodies();
     let summary = Summary::new(&sim, &bodies);
     if let Some(path) = &final_path {
-        write_final_state(path, &bodies)?;
+        write_final_state_with(path, &bodies, &sim.carried())?;
     }
     if let Some(path) = &summary_path {
         write_summary(path, &summary)?;

@@ -7,6 +7,7 @@ use std::path::Path;
 
 use anyhow::Context;
 
+use crate::carried::CarriedColumns;
 use crate::components::BodyState;
 use crate::observables::Summary;
 use crate::record::Recording;
@@ -19,13 +20,35 @@ pub const FINAL_STATE_HEADER: &str = "id,x,y,z,vx,vy,vz,mass,radius,temperature,
 
 /// Write one row per body (sorted by id) to `path`.
 pub fn write_final_state(path: &Path, bodies: &[BodyState]) -> anyhow::Result<()> {
+    write_final_state_with(path, bodies, &CarriedColumns::default())
+}
+
+/// Write one row per body (sorted by id) to `path`, with the quantities extensions
+/// carry (engine/carried.rs) as named columns after the built-in ones (an empty field
+/// where a body lacks one). `carried` holds the same bodies in the same order, or no
+/// columns at all (then the file is exactly [`write_final_state`]'s).
+pub fn write_final_state_with(
+    path: &Path,
+    bodies: &[BodyState],
+    carried: &CarriedColumns,
+) -> anyhow::Result<()> {
     let mut out = std::io::BufWriter::new(
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
     );
-    writeln!(out, "{FINAL_STATE_HEADER}")?;
-    for b in bodies {
+    let extra = !carried.names.is_empty();
+    if extra {
+        anyhow::ensure!(
+            carried.rows.len() == bodies.len()
+                && carried.rows.iter().zip(bodies).all(|(r, b)| r.0 == b.id),
+            "carried columns do not match the bodies"
+        );
+        writeln!(out, "{FINAL_STATE_HEADER},{}", carried.names.join(","))?;
+    } else {
+        writeln!(out, "{FINAL_STATE_HEADER}")?;
+    }
+    for (i, b) in bodies.iter().enumerate() {
         // `{:?}` on f64 is the shortest representation that round-trips exactly.
-        writeln!(
+        write!(
             out,
             "{},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?},{:?}",
             b.id,
@@ -41,6 +64,15 @@ pub fn write_final_state(path: &Path, bodies: &[BodyState]) -> anyhow::Result<()
             b.hardness,
             b.primaries
         )?;
+        if extra {
+            for v in &carried.rows[i].1 {
+                match v {
+                    Some(v) => write!(out, ",{v:?}")?,
+                    None => write!(out, ",")?,
+                }
+            }
+        }
+        writeln!(out)?;
     }
     out.flush()?;
     Ok(())

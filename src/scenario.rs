@@ -33,7 +33,8 @@ use agglo_engine::setup::Scene;
 use agglo_systems::DefaultPlugins;
 pub use agglo_systems::diagnostics::Diagnostics;
 pub use agglo_systems::impact::{
-    BondTest, DurationLaw, FrictionCap, ImpactModel, PairHardness, Separation, SolverKind, WorkHeat,
+    BondTest, DurationLaw, FrictionCap, ImpactModel, PairHardness, RestitutionLaw, Separation,
+    SolverKind, WorkHeat,
 };
 
 /// One complete run description.
@@ -305,6 +306,13 @@ impl Scenario {
                           it needs impact.duration = \"p04\""
                     .into(),
             });
+        }
+
+        if let Some(RestitutionLaw::Constant(e)) = i.restitution {
+            v.range_closed("impact.restitution.constant", e, 0.0, 1.0, "0 ≤ e ≤ 1");
+        }
+        if let Some(tc) = i.collapse_time {
+            v.non_negative("impact.collapse_time", tc);
         }
 
         let t = &self.time;

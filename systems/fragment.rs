@@ -8,7 +8,8 @@
 //! spheres with equal shares of mass, momentum and primaries, the parent's
 //! velocity, placed around the parent's centre without overlapping each other.
 //! The surface energy of the p pieces, δZ = γ 4π b0² (p^{1/3} − 1) ≤ δK, is taken
-//! from their heat (P04 (6.8)). Pieces get new ids; the parent is despawned.
+//! from their heat (P04 (6.8)). Pieces get new ids; the parent is despawned. Quantities
+//! an extension carries (engine/carried.rs) are split by their rules.
 //!
 //! Reads: [`ImpactRecords`] (after merging). Writes: despawns/spawns bodies,
 //! [`Counters`], [`EnergyLedger`], [`IdAllocator`], [`SimClock::bodies_reshaped`],
@@ -20,6 +21,7 @@ use bevy_ecs::prelude::*;
 use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
 
+use agglo_engine::carried::{CarriedState, Split, queue_split};
 use agglo_engine::components::{
     BodyState, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
 };
@@ -87,6 +89,7 @@ type FragmentQuery<'w, 's> = Query<
 >;
 
 /// The system.
+#[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
 pub fn fragment_bodies(
     records: Res<ImpactRecords>,
     scene: SceneConstants,
@@ -96,6 +99,7 @@ pub fn fragment_bodies(
     mut commands: Commands,
     mut absorbed: Local<Vec<(u64, Entity, f64)>>,
     mut messages: Option<ResMut<Messages<FragmentMessage>>>,
+    carried: Option<Res<CarriedState>>,
 ) {
     let SceneConstants {
         material, geometry, ..
@@ -134,7 +138,8 @@ pub fn fragment_bodies(
         let pieces = k.min(n.0.floor() as u64).max(2);
         let dz = surface_energy(material.surface_energy(), b.0, pieces);
         let theta = t.0 - dz / (m.0 * material.C);
-        let piece_mass = m.0 / pieces as f64;
+        // Mass and primaries split by mass: equal shares.
+        let piece_mass = Split::ByMass.split(m.0, pieces);
         let piece_radius = material.radius_of_mass(piece_mass);
         let first_piece = ids.next;
         for offset in piece_offsets(pieces as usize, piece_radius) {
@@ -146,12 +151,21 @@ pub fn fragment_bodies(
                 radius: piece_radius,
                 temperature: theta,
                 hardness: material.hardness(theta),
-                primaries: n.0 / pieces as f64,
+                primaries: Split::ByMass.split(n.0, pieces),
             };
             // Pieces are placed now: their state holds at the current time.
             events
                 .spawned
                 .push(commands.spawn(state.bundle_at(clock.time)).id());
+        }
+        if carried.is_some() {
+            // The extension's quantities, by their rules, before the parent is despawned.
+            let spawned = &events.spawned;
+            queue_split(
+                &mut commands,
+                entity,
+                spawned[spawned.len() - pieces as usize..].to_vec(),
+            );
         }
         if let Some(messages) = messages.as_mut() {
             messages.write(FragmentMessage {

@@ -25,7 +25,7 @@ pub mod time_step;
 
 use bevy_ecs::prelude::*;
 
-use agglo_engine::components::{Mass, Particle, Temperature, Velocity};
+use agglo_engine::components::{Mass, Particle, ParticleId, Temperature, Velocity};
 use agglo_engine::error::SimError;
 use agglo_engine::scene::Material;
 use agglo_engine::scene::{CoolingMethod, Core, Physics, TimeControl, event_core_needs};
@@ -94,7 +94,25 @@ impl SimPlugin for ImpactPlugin {
     fn build(&self, sim: &mut SimBuilder) {
         // The scene's `impact` section, or the defaults when it gives none.
         sim.init_resource::<impact::ImpactModel>()
-            .add_systems(StepSystems::Impact, impact::resolve_impacts);
+            .init_resource::<impact::SolvedImpacts>()
+            .add_systems(StepSystems::Impact, impact::resolve_impacts)
+            .set_impact_outcome_applier(impact::add_outcome_applier);
+        let settings = *sim.resource::<impact::ImpactModel>();
+        if settings.restitution.is_some() {
+            // The TC model against inelastic collapse (docs/model.md §5.4).
+            let t_c = settings.collapse_time.unwrap_or_else(|| {
+                let b0 = sim.resource::<agglo_engine::cloud::PrimaryGrain>().radius;
+                let world = sim.world_mut();
+                let mut query = world.query_filtered::<(&ParticleId, &Velocity), With<Particle>>();
+                let mut bodies: Vec<_> = query.iter(world).map(|(id, v)| (id.0, v.0)).collect();
+                bodies.sort_by_key(|b| b.0); // sums in id order, not entity order
+                let velocities: Vec<_> = bodies.into_iter().map(|b| b.1).collect();
+                impact::default_collapse_time(b0, &velocities)
+            });
+            if t_c > 0.0 {
+                sim.insert_resource(impact::CollapseGuard::new(t_c));
+            }
+        }
     }
 }
 

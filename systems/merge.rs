@@ -3,7 +3,8 @@
 //! Every pair the impact solve bonded becomes one body: masses, momenta, primaries
 //! and heat (one C) add; the position is the centre of mass (minimum image); radius
 //! and hardness are derived. The body keeps the smaller stable id; the other entity
-//! is despawned. Mass and momentum are conserved to rounding.
+//! is despawned. Mass and momentum are conserved to rounding. Quantities an extension
+//! carries (engine/carried.rs) are combined by their rules.
 //!
 //! When a body bonds more than once in a step (`physics.impacts_per_step =
 //! "every_contact"`), the bonds chain: a pair whose body was already absorbed merges
@@ -24,6 +25,7 @@ use bevy_ecs::prelude::*;
 
 use agglo_engine::params::{RunBooks, SceneConstants};
 
+use agglo_engine::carried::{CarriedState, Combine, queue_merge};
 use agglo_engine::components::{
     Hardness, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
 };
@@ -48,6 +50,7 @@ type MergeQuery<'w, 's> = Query<
 >;
 
 /// The system.
+#[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
 pub fn merge_bonded(
     records: Res<ImpactRecords>,
     scene: SceneConstants,
@@ -55,6 +58,7 @@ pub fn merge_bonded(
     books: RunBooks,
     mut commands: Commands,
     mut messages: Option<ResMut<Messages<MergeMessage>>>,
+    carried: Option<Res<CarriedState>>,
 ) {
     let SceneConstants {
         material,
@@ -105,7 +109,8 @@ pub fn merge_bonded(
         };
         let (mut pa, mut va, mut ma, mut ra, mut ta, mut ha, mut na, id_a) = keep;
         let (_, vb, mb, _, tb, _, nb, id_b) = gone;
-        let m = ma.0 + mb.0;
+        // Mass is extensive, temperature mass-weighted (one C), primaries extensive.
+        let m = Combine::Sum.combine(ma.0, 0.0, mb.0, 0.0);
         let relative_motion = if several_impacts {
             0.5 * ma.0 * mb.0 / m * (va.0 - vb.0).length_squared()
         } else {
@@ -114,12 +119,16 @@ pub fn merge_bonded(
         // Centre of mass with the image of b that was met (not always the nearest one).
         pa.0 = geometry.wrap(pa.0 + separation * (mb.0 / m));
         va.0 = (ma.0 * va.0 + mb.0 * vb.0) / m;
-        ta.0 = (ma.0 * ta.0 + mb.0 * tb.0) / m;
+        ta.0 = Combine::MassWeighted.combine(ta.0, ma.0, tb.0, mb.0);
         if relative_motion > 0.0 {
             ta.0 += relative_motion / (m * material.C);
             ledger.impact_dissipation += relative_motion;
         }
-        na.0 += nb.0;
+        na.0 = Combine::Sum.combine(na.0, ma.0, nb.0, mb.0);
+        if carried.is_some() {
+            // The extension's quantities, by their rules, before `b` is despawned.
+            queue_merge(&mut commands, (a, ma.0), (b, mb.0));
+        }
         ma.0 = m;
         ra.0 = material.radius_of_mass(m);
         ha.0 = material.hardness(ta.0);

@@ -214,6 +214,7 @@ pub fn work_heat_factor(rule: WorkHeat) -> f64 {
     match rule {
         WorkHeat::Once => 1.0,
         WorkHeat::Twice => 2.0,
+        WorkHeat::None => 0.0,
     }
 }
 
@@ -576,55 +577,133 @@ pub fn solve_pair(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3
             (None, None) => find_fixed_point(model, g),
         }
     };
+    if fp.e <= 0.0 {
+        bonded_outcome(model, bi, bj, normal, fp)
+    } else {
+        bounce_outcome(model, bi, bj, normal, fp)
+    }
+}
+
+/// Kinetic energy each body loses in the pair's centre-of-mass frame [J] when the pair
+/// goes from (bi, bj) to the velocities (after_i, after_j).
+fn lost_in_cm_frame(bi: &PairBody, bj: &PairBody, after_i: DVec3, after_j: DVec3) -> (f64, f64) {
     let (mi, mj) = (bi.mass, bj.mass);
     let total = mi + mj;
     let v_cm = (mi * bi.velocity + mj * bj.velocity) / total;
     let lost = |m: f64, before: DVec3, after: DVec3| {
         (0.5 * m * ((before - v_cm).length_squared() - (after - v_cm).length_squared())).max(0.0)
     };
-    let bonded = fp.e <= 0.0;
-    if bonded {
-        // Bond: common velocity, all relative kinetic energy becomes heat (plus reaction heat at e = 0).
-        let at_zero = trial(model, bi, bj, normal, 0.0);
-        let dissipated = (0.5 * mi * bi.velocity.length_squared()
-            + 0.5 * mj * bj.velocity.length_squared()
-            - 0.5 * total * v_cm.length_squared())
-        .max(0.0);
-        let c = model.heat_capacity;
-        let rc = at_zero.reaction_heat;
-        let heat = dissipated * work_heat_factor(model.work_heat);
-        PairOutcome {
-            restitution: 0.0,
-            bonded: true,
-            velocity_i: v_cm,
-            velocity_j: v_cm,
-            temperature_i: bi.temperature + heat / (2.0 * mi * c) + rc / (mi * c),
-            temperature_j: bj.temperature + heat / (2.0 * mj * c) + rc / (mj * c),
-            dissipated,
-            reaction_heat: 2.0 * rc,
-            lost_i: lost(mi, bi.velocity, v_cm),
-            lost_j: lost(mj, bj.velocity, v_cm),
-            iterations: fp.iterations,
-            fallback_iterations: fp.fallback_iterations,
-            method: fp.method,
-        }
-    } else {
-        let t = trial(model, bi, bj, normal, fp.e);
-        PairOutcome {
-            restitution: fp.e,
-            bonded: false,
-            velocity_i: t.velocity_i,
-            velocity_j: t.velocity_j,
-            temperature_i: t.temperature_i,
-            temperature_j: t.temperature_j,
-            dissipated: t.dissipated,
-            reaction_heat: 2.0 * t.reaction_heat,
-            lost_i: lost(mi, bi.velocity, t.velocity_i),
-            lost_j: lost(mj, bj.velocity, t.velocity_j),
-            iterations: fp.iterations,
-            fallback_iterations: fp.fallback_iterations,
-            method: fp.method,
-        }
+    (
+        lost(mi, bi.velocity, after_i),
+        lost(mj, bj.velocity, after_j),
+    )
+}
+
+/// The pair bonds: common velocity, all relative kinetic energy becomes heat (plus the
+/// reaction heat at e = 0). `fp` says how the solve got there (e is ignored).
+pub fn bonded_outcome(
+    model: &PairModel,
+    bi: &PairBody,
+    bj: &PairBody,
+    normal: DVec3,
+    fp: FixedPoint,
+) -> PairOutcome {
+    let (mi, mj) = (bi.mass, bj.mass);
+    let total = mi + mj;
+    let v_cm = (mi * bi.velocity + mj * bj.velocity) / total;
+    let at_zero = trial(model, bi, bj, normal, 0.0);
+    let dissipated = (0.5 * mi * bi.velocity.length_squared()
+        + 0.5 * mj * bj.velocity.length_squared()
+        - 0.5 * total * v_cm.length_squared())
+    .max(0.0);
+    let c = model.heat_capacity;
+    let rc = at_zero.reaction_heat;
+    let heat = dissipated * work_heat_factor(model.work_heat);
+    let (lost_i, lost_j) = lost_in_cm_frame(bi, bj, v_cm, v_cm);
+    PairOutcome {
+        restitution: 0.0,
+        bonded: true,
+        velocity_i: v_cm,
+        velocity_j: v_cm,
+        temperature_i: bi.temperature + heat / (2.0 * mi * c) + rc / (mi * c),
+        temperature_j: bj.temperature + heat / (2.0 * mj * c) + rc / (mj * c),
+        dissipated,
+        reaction_heat: 2.0 * rc,
+        lost_i,
+        lost_j,
+        iterations: fp.iterations,
+        fallback_iterations: fp.fallback_iterations,
+        method: fp.method,
+    }
+}
+
+/// The pair bounces with restitution `fp.e` > 0: G's step 1–6 at that e (friction,
+/// contact area and reaction heat as the law has them), whether or not e is G's fixed point.
+pub fn bounce_outcome(
+    model: &PairModel,
+    bi: &PairBody,
+    bj: &PairBody,
+    normal: DVec3,
+    fp: FixedPoint,
+) -> PairOutcome {
+    let t = trial(model, bi, bj, normal, fp.e);
+    let (lost_i, lost_j) = lost_in_cm_frame(bi, bj, t.velocity_i, t.velocity_j);
+    PairOutcome {
+        restitution: fp.e,
+        bonded: false,
+        velocity_i: t.velocity_i,
+        velocity_j: t.velocity_j,
+        temperature_i: t.temperature_i,
+        temperature_j: t.temperature_j,
+        dissipated: t.dissipated,
+        reaction_heat: 2.0 * t.reaction_heat,
+        lost_i,
+        lost_j,
+        iterations: fp.iterations,
+        fallback_iterations: fp.fallback_iterations,
+        method: fp.method,
+    }
+}
+
+/// The granular-gas law (docs/model.md §5.4): smooth spheres with a constant normal
+/// restitution e ∈ [0, 1] — the normal relative velocity is reversed and scaled by e, the
+/// tangential velocities are unchanged, there is no bonding, no contact area and no
+/// reaction heat. The kinetic energy lost, ½ μ (1 − e²) v_n², heats the pair as the
+/// `work_heat` reading says (`none`: it leaves the pair).
+pub fn constant_restitution_outcome(
+    model: &PairModel,
+    bi: &PairBody,
+    bj: &PairBody,
+    normal: DVec3,
+    e: f64,
+) -> PairOutcome {
+    let (mi, mj) = (bi.mass, bj.mass);
+    let closing = (bi.velocity - bj.velocity).dot(normal);
+    // Normal impulse J = μ (1 + e) v_n along n̂ (from i to j).
+    let impulse = mi * mj / (mi + mj) * (1.0 + e) * closing;
+    let velocity_i = bi.velocity - (impulse / mi) * normal;
+    let velocity_j = bj.velocity + (impulse / mj) * normal;
+    let ke = |m: f64, v: DVec3| 0.5 * m * v.length_squared();
+    let dissipated =
+        (ke(mi, bi.velocity) + ke(mj, bj.velocity) - ke(mi, velocity_i) - ke(mj, velocity_j))
+            .max(0.0);
+    let c = model.heat_capacity;
+    let heat = dissipated * work_heat_factor(model.work_heat);
+    let (lost_i, lost_j) = lost_in_cm_frame(bi, bj, velocity_i, velocity_j);
+    PairOutcome {
+        restitution: e,
+        bonded: false,
+        velocity_i,
+        velocity_j,
+        temperature_i: bi.temperature + heat / (2.0 * mi * c),
+        temperature_j: bj.temperature + heat / (2.0 * mj * c),
+        dissipated,
+        reaction_heat: 0.0,
+        lost_i,
+        lost_j,
+        iterations: 0,
+        fallback_iterations: 0,
+        method: SolveMethod::ClosedForm,
     }
 }
 
@@ -656,6 +735,9 @@ pub enum WorkHeat {
     Once,
     /// W twice: δK plus the deformation work δW of P04 (4.7)–(4.9), (6.10).
     Twice,
+    /// Not at all: the dissipated energy leaves the pair (e.g. the granular-gas law of
+    /// §5.4 when its heat does not matter); the ledgers book it (docs/model.md §10).
+    None,
 }
 
 /// Which hardness a pair bonds against (docs/model.md §5.1 step 7).

@@ -47,6 +47,12 @@ pub struct Stats {
     pub clamped_steps: u64,
     /// Invariant checks that failed.
     pub invariant_violations: u64,
+    /// Quantities extensions carry (engine/carried.rs), each for the whole cloud combined
+    /// by its rule, under its name; none (and no field) when none is registered. Not in
+    /// the schema, which stays that of the built-in fields.
+    #[serde(flatten)]
+    #[schemars(skip)]
+    pub carried: std::collections::BTreeMap<String, f64>,
 }
 
 impl Stats {
@@ -80,6 +86,7 @@ impl Stats {
             fallbacks: c.fallbacks,
             clamped_steps: c.clamped_steps,
             invariant_violations: c.invariant_violations,
+            carried: Default::default(),
         }
     }
 

@@ -533,7 +533,8 @@ impl Recorder {
         let initial = *self
             .initial_kinetic_energy
             .get_or_insert(summary.kinetic_energy);
-        let stats = Stats::new(&summary, clock.dt, initial);
+        let mut stats = Stats::new(&summary, clock.dt, initial);
+        stats.carried = sim.carried_totals().into_iter().collect();
         self.buf.clear();
         serde_json::to_writer(&mut self.buf, &stats)?;
         let header = self.header(self.channels.stats, self.sampling.log_time(t));

@@ -12,9 +12,20 @@
 //! [`Counters`], [`EnergyLedger`], [`StateChanged`]; one [`ImpactMessage`] per impact
 //! when an extension subscribed (engine/hooks.rs).
 //!
+//! With the constant-restitution law (`impact.restitution = {"constant": e}`, docs/model.md
+//! §5.4) the solve is [`constant_restitution_outcome`] instead, with the TC model
+//! ([`CollapseGuard`]) against inelastic collapse.
+//!
+//! When an extension added impact-outcome systems (engine/hooks.rs), this stage solves
+//! every contact, files it in [`PendingImpacts`] and stops; the extension's systems may
+//! change outcomes, and [`apply_impact_outcomes`] applies them, recomputing a changed one
+//! from the law at the restitution chosen (so the ledgers stay right).
+//!
 //! The solve itself is the plain function [`solve_pair`] in `engine/laws/impact.rs`, free
 //! of ECS types, so it can be tested against the closed form of docs/model.md §14 and
 //! benchmarked alone; this module is the system around it.
+
+use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
 
@@ -22,12 +33,18 @@ use agglo_engine::params::{RunBooks, SceneConstants};
 use agglo_engine::scene::Material;
 
 use agglo_engine::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
-use agglo_engine::hooks::{ImpactMessage, ImpactOutcome, Messages};
-use agglo_engine::resources::{Contact, ContactList, ImpactRecord, ImpactRecords};
+use agglo_engine::hooks::{
+    ImpactMessage, ImpactOutcome, ImpactOutcomeSystems, Messages, OutcomeChange, PendingImpact,
+    PendingImpacts,
+};
+use agglo_engine::resources::{
+    BoxGeometry, Contact, ContactList, Counters, EnergyLedger, ImpactRecord, ImpactRecords,
+    SimClock,
+};
 // The law (pure numerics) lives in the engine's laws; this module is its system.
 pub use agglo_engine::laws::impact::*;
 mod settings;
-pub use settings::ImpactModel;
+pub use settings::{ImpactModel, RestitutionLaw};
 
 /// The pair law's input for this scene: the `impact` section and the material's
 /// constants, gathered once per step.
@@ -99,53 +116,169 @@ fn impact_message(
     }
 }
 
-/// The system: resolve every contact of [`ContactList`] in order.
-pub fn resolve_impacts(
-    contacts: Res<ContactList>,
-    scene: SceneConstants,
-    settings: Res<ImpactModel>,
-    mut bodies: ImpactQuery,
-    mut records: ResMut<ImpactRecords>,
-    books: RunBooks,
-    mut messages: Option<ResMut<Messages<ImpactMessage>>>,
-) {
-    let SceneConstants {
-        material, geometry, ..
-    } = scene;
-    let RunBooks {
-        mut clock,
-        mut counters,
-        mut ledger,
-        mut changed,
-        ..
-    } = books;
-    records.records.clear();
-    if contacts.contacts.is_empty() {
-        return;
+/// The TC model (Luding & McNamara 1998; docs/model.md §5.4) for the constant law: the
+/// time of each body's last impact, by stable id; a pair either of whose bodies had an
+/// impact less than t_c ago bounces elastically.
+#[derive(Resource, Debug, Default)]
+pub struct CollapseGuard {
+    /// t_c [s]; 0 switches the model off.
+    pub t_c: f64,
+    last: HashMap<u64, f64>,
+}
+
+impl CollapseGuard {
+    pub fn new(t_c: f64) -> Self {
+        Self {
+            t_c,
+            last: HashMap::new(),
+        }
     }
-    let model = pair_model(&material, &settings);
-    for contact in &contacts.contacts {
-        let Ok([a, b]) = bodies.get_many_mut([contact.a, contact.b]) else {
-            continue;
+
+    /// The restitution the pair (id_a, id_b) takes at time `now` [s] under constant `e`,
+    /// and whether the TC model made it elastic; records the impact.
+    pub fn restitution(&mut self, id_a: u64, id_b: u64, now: f64, e: f64) -> (f64, bool) {
+        let recent = |id| {
+            self.last
+                .get(&id)
+                .is_some_and(|&t: &f64| now - t < self.t_c)
         };
+        let elastic = self.t_c > 0.0 && e < 1.0 && (recent(id_a) || recent(id_b));
+        self.last.insert(id_a, now);
+        self.last.insert(id_b, now);
+        (if elastic { 1.0 } else { e }, elastic)
+    }
+}
+
+/// The default t_c [s] of the TC model: 1e-3 b0 / v_s, v_s the rms speed of the
+/// bodies' velocities about their mean (docs/model.md §5.4); 0 when v_s = 0.
+pub fn default_collapse_time(b0: f64, velocities: &[glam::DVec3]) -> f64 {
+    if velocities.is_empty() {
+        return 0.0;
+    }
+    let n = velocities.len() as f64;
+    let mean = velocities.iter().copied().sum::<glam::DVec3>() / n;
+    let spread = (velocities
+        .iter()
+        .map(|v| (*v - mean).length_squared())
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    if spread > 0.0 {
+        1e-3 * b0 / spread
+    } else {
+        0.0
+    }
+}
+
+/// Solve one contact at time `now` [s] with the scene's law; true when the TC model made
+/// it elastic.
+fn solve(
+    (model, settings): (&PairModel, &ImpactModel),
+    a: &PairBody,
+    b: &PairBody,
+    contact: &Contact,
+    now: f64,
+    guard: Option<&mut CollapseGuard>,
+) -> (PairOutcome, bool) {
+    match settings.restitution {
+        None => (solve_pair(model, a, b, contact.normal), false),
+        Some(RestitutionLaw::Constant(e)) => {
+            let (e, elastic) = match guard {
+                Some(guard) => guard.restitution(contact.id_a, contact.id_b, now, e),
+                None => (e, false),
+            };
+            (
+                constant_restitution_outcome(model, a, b, contact.normal, e),
+                elastic,
+            )
+        }
+    }
+}
+
+/// The outcome a hook chose, from the law at that restitution.
+fn redo(
+    model: &PairModel,
+    settings: &ImpactModel,
+    solved: &Solved,
+    change: OutcomeChange,
+) -> PairOutcome {
+    let (a, b, n) = (&solved.a, &solved.b, solved.contact.normal);
+    let fp = |e| FixedPoint {
+        e,
+        iterations: solved.out.iterations,
+        fallback_iterations: solved.out.fallback_iterations,
+        method: solved.out.method,
+    };
+    let constant = settings.restitution.is_some();
+    match change {
+        OutcomeChange::Bond if constant => {
+            // The granular-gas law has no contact area: no reaction heat.
+            let smooth = PairModel {
+                alpha: 0.0,
+                ..*model
+            };
+            bonded_outcome(&smooth, a, b, n, fp(0.0))
+        }
+        OutcomeChange::Bond => bonded_outcome(model, a, b, n, fp(0.0)),
+        OutcomeChange::Bounce { restitution } => {
+            // NaN counts as 0; the rest is clamped to [0, 1].
+            let e = if restitution >= 0.0 {
+                restitution.min(1.0)
+            } else {
+                0.0
+            };
+            if constant {
+                constant_restitution_outcome(model, a, b, n, e)
+            } else {
+                bounce_outcome(model, a, b, n, fp(e))
+            }
+        }
+    }
+}
+
+type ImpactItem<'a> = (
+    Mut<'a, Position>,
+    Mut<'a, Velocity>,
+    &'a Mass,
+    &'a Radius,
+    Mut<'a, Temperature>,
+    Mut<'a, Hardness>,
+);
+
+/// What applying an outcome writes besides the pair: the books and the messages.
+struct Apply<'a> {
+    model: PairModel,
+    settings: &'a ImpactModel,
+    material: &'a Material,
+    geometry: &'a BoxGeometry,
+    clock: &'a mut SimClock,
+    counters: &'a mut Counters,
+    ledger: &'a mut EnergyLedger,
+    records: &'a mut ImpactRecords,
+    messages: Option<&'a mut Messages<ImpactMessage>>,
+}
+
+impl Apply<'_> {
+    /// Apply one solved impact to the pair and the books.
+    fn apply(
+        &mut self,
+        contact: &Contact,
+        (body_a, body_b): (&PairBody, &PairBody),
+        out: &PairOutcome,
+        a: ImpactItem,
+        b: ImpactItem,
+    ) {
         let (mut pa, mut va, ma, ra, mut ta, mut ha) = a;
         let (mut pb, mut vb, mb, rb, mut tb, mut hb) = b;
-        let body_a = PairBody {
-            mass: ma.0,
-            radius: ra.0,
-            velocity: va.0,
-            temperature: ta.0,
-        };
-        let body_b = PairBody {
-            mass: mb.0,
-            radius: rb.0,
-            velocity: vb.0,
-            temperature: tb.0,
-        };
-        let out = solve_pair(&model, &body_a, &body_b, contact.normal);
-        if let Some(messages) = messages.as_mut() {
+        let (material, geometry, settings) = (self.material, self.geometry, self.settings);
+        if let Some(messages) = self.messages.as_mut() {
             messages.write(impact_message(
-                clock.time, contact, &body_a, &body_b, &out, &model,
+                self.clock.time,
+                contact,
+                body_a,
+                body_b,
+                out,
+                &self.model,
             ));
         }
         va.0 = out.velocity_i;
@@ -161,7 +294,7 @@ pub fn resolve_impacts(
             let distance = contact.separation.length();
             let overlap = ra.0 + rb.0 - distance;
             if overlap > 0.0 {
-                clock.bodies_pushed = true;
+                self.clock.bodies_pushed = true;
                 match settings.separation {
                     Separation::Normal => {
                         let total = ma.0 + mb.0;
@@ -179,6 +312,7 @@ pub fn resolve_impacts(
             }
         }
 
+        let counters = &mut *self.counters;
         counters.impacts += 1;
         if out.bonded {
             counters.bonds += 1;
@@ -195,12 +329,16 @@ pub fn resolve_impacts(
             SolveMethod::Fallback => counters.fallbacks += 1,
             SolveMethod::Unconverged => counters.unconverged += 1,
         }
+        let ledger = &mut *self.ledger;
         ledger.reaction_heat += out.reaction_heat;
         ledger.impact_dissipation += out.dissipated;
-        if model.work_heat == WorkHeat::Twice {
-            ledger.double_counted_heat += out.dissipated;
+        match self.model.work_heat {
+            WorkHeat::Once => {}
+            WorkHeat::Twice => ledger.double_counted_heat += out.dissipated,
+            // The dissipation left the pair instead of heating it.
+            WorkHeat::None => ledger.double_counted_heat -= out.dissipated,
         }
-        records.records.push(ImpactRecord {
+        self.records.records.push(ImpactRecord {
             a: contact.a,
             b: contact.b,
             id_a: contact.id_a,
@@ -212,5 +350,159 @@ pub fn resolve_impacts(
             lost_b: out.lost_j,
         });
     }
+}
+
+/// A contact solved and not yet applied (only when outcome hooks are present).
+#[derive(Debug, Clone, Copy)]
+struct Solved {
+    contact: Contact,
+    a: PairBody,
+    b: PairBody,
+    out: PairOutcome,
+}
+
+/// The step's solved contacts awaiting the outcome hooks, aligned with [`PendingImpacts`].
+#[derive(Resource, Debug, Default)]
+pub struct SolvedImpacts(Vec<Solved>);
+
+fn pair_bodies(a: &ImpactItem, b: &ImpactItem) -> (PairBody, PairBody) {
+    let body = |x: &ImpactItem| PairBody {
+        mass: x.2.0,
+        radius: x.3.0,
+        velocity: x.1.0,
+        temperature: x.4.0,
+    };
+    (body(a), body(b))
+}
+
+/// The system: resolve every contact of [`ContactList`] in order (or, with outcome
+/// hooks, solve them and leave them in [`PendingImpacts`] for [`apply_impact_outcomes`]).
+#[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
+pub fn resolve_impacts(
+    contacts: Res<ContactList>,
+    scene: SceneConstants,
+    settings: Res<ImpactModel>,
+    mut bodies: ImpactQuery,
+    mut records: ResMut<ImpactRecords>,
+    books: RunBooks,
+    mut messages: Option<ResMut<Messages<ImpactMessage>>>,
+    mut pending: Option<ResMut<PendingImpacts>>,
+    mut solved: ResMut<SolvedImpacts>,
+    mut guard: Option<ResMut<CollapseGuard>>,
+) {
+    let SceneConstants {
+        material, geometry, ..
+    } = scene;
+    let RunBooks {
+        mut clock,
+        mut counters,
+        mut ledger,
+        mut changed,
+        ..
+    } = books;
+    records.records.clear();
+    if contacts.contacts.is_empty() {
+        return;
+    }
+    let model = pair_model(&material, &settings);
+    let now = clock.time;
+    let mut apply = Apply {
+        model,
+        settings: &settings,
+        material: &material,
+        geometry: &geometry,
+        clock: &mut clock,
+        counters: &mut counters,
+        ledger: &mut ledger,
+        records: &mut records,
+        messages: messages.as_deref_mut(),
+    };
+    for contact in &contacts.contacts {
+        let Ok([a, b]) = bodies.get_many_mut([contact.a, contact.b]) else {
+            continue;
+        };
+        let (body_a, body_b) = pair_bodies(&a, &b);
+        let (out, elastic) = solve(
+            (&model, &settings),
+            &body_a,
+            &body_b,
+            contact,
+            now,
+            guard.as_deref_mut(),
+        );
+        if elastic {
+            apply.counters.collapse_elastic += 1;
+        }
+        if let Some(pending) = pending.as_mut() {
+            let proposal = impact_message(now, contact, &body_a, &body_b, &out, &model);
+            pending.push(PendingImpact::new(proposal, contact.a, contact.b));
+            solved.0.push(Solved {
+                contact: *contact,
+                a: body_a,
+                b: body_b,
+                out,
+            });
+            continue;
+        }
+        apply.apply(contact, (&body_a, &body_b), &out, a, b);
+    }
     changed.0 = true;
+}
+
+/// Applies the step's impacts after the outcome hooks (stage 2b,
+/// [`ImpactOutcomeSystems::Apply`]): the law's outcome, or the one a hook chose,
+/// recomputed from the law at that restitution.
+#[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
+pub fn apply_impact_outcomes(
+    mut pending: ResMut<PendingImpacts>,
+    mut solved: ResMut<SolvedImpacts>,
+    scene: SceneConstants,
+    settings: Res<ImpactModel>,
+    mut bodies: ImpactQuery,
+    mut records: ResMut<ImpactRecords>,
+    books: RunBooks,
+    mut messages: Option<ResMut<Messages<ImpactMessage>>>,
+) {
+    let impacts = pending.take();
+    let solved = std::mem::take(&mut solved.0);
+    if impacts.is_empty() {
+        return;
+    }
+    let SceneConstants {
+        material, geometry, ..
+    } = scene;
+    let RunBooks {
+        mut clock,
+        mut counters,
+        mut ledger,
+        ..
+    } = books;
+    let model = pair_model(&material, &settings);
+    let mut apply = Apply {
+        model,
+        settings: &settings,
+        material: &material,
+        geometry: &geometry,
+        clock: &mut clock,
+        counters: &mut counters,
+        ledger: &mut ledger,
+        records: &mut records,
+        messages: messages.as_deref_mut(),
+    };
+    for (hook, s) in impacts.iter().zip(&solved) {
+        let Ok([a, b]) = bodies.get_many_mut([s.contact.a, s.contact.b]) else {
+            continue;
+        };
+        let out = match hook.change() {
+            None => s.out,
+            Some(change) => redo(&model, &settings, s, change),
+        };
+        apply.apply(&s.contact, (&s.a, &s.b), &out, a, b);
+    }
+}
+
+/// Adds [`apply_impact_outcomes`] where it runs (for
+/// [`agglo_engine::schedule::SimBuilder::set_impact_outcome_applier`]).
+pub fn add_outcome_applier(schedule: &mut Schedule) {
+    schedule.add_systems(apply_impact_outcomes.in_set(ImpactOutcomeSystems::Apply));
 }

@@ -63,6 +63,27 @@ pub struct ImpactModel {
     /// energy — on top, so the pair is heated by W more (docs/model.md §5.1 step 6).
     #[serde(default, skip_serializing_if = "is_default")]
     pub work_heat: WorkHeat,
+    /// The restitution law: absent = the impact/heat solve of §5.1–5.3 (bonding and
+    /// bouncing from hardness and heat); `{"constant": e}`, 0 ≤ e ≤ 1, the granular-gas
+    /// law of docs/model.md §5.4: smooth spheres, normal restitution e, no bonding, no
+    /// reaction heat; the lost energy heats the pair unless `work_heat` is `none`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restitution: Option<RestitutionLaw>,
+    /// The TC model's t_c [s] for the constant law (docs/model.md §5.4): a pair either of
+    /// whose bodies had an impact less than t_c ago bounces elastically (e = 1), which
+    /// stops inelastic collapse. Default: 1e-3 b0 / v_s, the time a body at the cloud's
+    /// initial rms speed about its mean, v_s, takes to cross a thousandth of the primary
+    /// radius b0. 0 switches the model off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collapse_time: Option<f64>,
+}
+
+/// A restitution law other than the impact/heat solve (docs/model.md §5.4).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum RestitutionLaw {
+    /// Constant normal restitution e, 0 ≤ e ≤ 1 (smooth spheres, no bonding).
+    Constant(f64),
 }
 
 fn default_solver_tol() -> f64 {
@@ -88,6 +109,8 @@ impl Default for ImpactModel {
             bond_test: BondTest::FixedPoint,
             separation: Separation::Normal,
             work_heat: WorkHeat::Once,
+            restitution: None,
+            collapse_time: None,
         }
     }
 }

@@ -7,6 +7,7 @@
 
 mod common;
 
+mod carried;
 mod cli;
 mod closed_form;
 mod conservation;
@@ -18,6 +19,7 @@ mod fields;
 mod hooks;
 mod inverse;
 mod layout;
+mod outcome;
 mod pipeline_from_outside;
 mod properties;
 mod readings;
@@ -29,3 +31,4 @@ mod signals;
 mod stepping;
 mod study;
 mod unfinishable_runs;
+mod worked_examples;
