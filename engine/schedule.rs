@@ -140,6 +140,9 @@ pub struct RunInfo {
 /// Swaps one subscribed message type's buffers (engine/hooks.rs).
 type Rotate = fn(&mut World);
 
+/// Work a plugin leaves for [`SimBuilder::build`].
+type Finisher = Box<dyn FnOnce(&mut World)>;
+
 /// A world and schedule under construction.
 pub struct SimBuilder {
     world: World,
@@ -152,7 +155,7 @@ pub struct SimBuilder {
     left_out: Vec<String>,
     core_stats: Option<fn(&World) -> EventStats>,
     /// Work left for [`SimBuilder::build`], once every plugin has had its say.
-    finishers: Vec<Box<dyn FnOnce(&mut World)>>,
+    finishers: Vec<Finisher>,
     /// Subscribed message types and the function that rotates each one's buffers.
     subscriptions: Vec<(std::any::TypeId, Rotate)>,
     /// True once an extension added impact-outcome systems.

@@ -215,6 +215,9 @@ fn pipeline_text(p: &Pipeline) -> String {
     for (i, system) in p.systems.iter().enumerate() {
         text += &format!("  {:>2}. {system}\n", i + 1);
     }
+    for line in &p.forces {
+        text += &format!("{line}\n");
+    }
     if p.left_out.is_empty() {
         text += "left out: nothing\n";
     } else {

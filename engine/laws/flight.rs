@@ -225,7 +225,8 @@ pub fn contact_search(
         }
         let accel = fa.acceleration_bound(va, s) + fb.acceleration_bound(vb, s);
         let h = safe_step(gap, rate, accel);
-        if !(s + h <= horizon) {
+        // An infinite step (nothing can close the gap) or one past the horizon ends it.
+        if !h.is_finite() || s + h > horizon {
             return Search::Clear;
         }
         if h <= f64::EPSILON * s {
@@ -297,7 +298,7 @@ pub fn wall_crossing(
         // step by the safer of the two.
         let (top, bottom) = (safe_step(width - p, -q, accel), safe_step(p, q, accel));
         let h = top.min(bottom);
-        if !(s + h <= horizon) {
+        if !h.is_finite() || s + h > horizon {
             return None;
         }
         if h <= f64::EPSILON * s.max(f64::MIN_POSITIVE) {

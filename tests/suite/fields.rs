@@ -349,3 +349,24 @@ fn a_field_set_by_an_extension_after_the_default_plugins_is_flown() {
     let v = sim.bodies()[0].velocity;
     assert!((v.z - (2.0 - 1000.0 * 0.002)).abs() <= 1e-12, "{v}");
 }
+
+#[test]
+fn validate_says_which_path_the_field_takes() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("settling.json");
+    let s = one_body(
+        json!({ "gravity": [0, 0, -9.81],
+                "drag": { "relaxation": { "epstein": { "gas_density": 1.0, "thermal_speed": 400.0 } } } }),
+        json!({}),
+    );
+    std::fs::write(&path, serde_json::to_string(&s).unwrap()).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_agglo"))
+        .arg("validate")
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("field: linear drag (Epstein"), "{text}");
+    assert!(text.contains("root search"), "{text}");
+}
