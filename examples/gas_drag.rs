@@ -16,12 +16,22 @@ use agglo::glam::DVec3;
 use agglo::prelude::*;
 
 /// Epstein drag toward `gas` with settling under `gravity`, τ0 for a primary grain.
-struct SettlingPlugin {
-    gravity: DVec3,
-    gas: DVec3,
+pub struct SettlingPlugin {
+    /// g [m/s²].
+    pub gravity: DVec3,
+    /// Gas velocity u [m/s].
+    pub gas: DVec3,
     /// Relaxation time of a primary grain [s].
-    tau0: f64,
+    pub tau0: f64,
 }
+
+/// The example's settling: g = 2e4 m/s² (g τ0 = 20 m/s, the scene's random speeds), gas
+/// flowing up at 20 m/s so that primaries hover and merged grains fall through them.
+pub const SETTLING: SettlingPlugin = SettlingPlugin {
+    gravity: DVec3::new(0.0, 0.0, -2e4),
+    gas: DVec3::new(0.0, 0.0, 20.0),
+    tau0: 1e-3,
+};
 
 impl SimPlugin for SettlingPlugin {
     fn name(&self) -> &'static str {
@@ -46,33 +56,34 @@ impl SimPlugin for SettlingPlugin {
     }
 }
 
+/// Run `scenario` with the built-in physics, and the settling field if `settling`.
+pub fn run(scenario: &Scenario, settling: Option<&SettlingPlugin>) -> anyhow::Result<Simulation> {
+    let mut builder = Simulation::builder(scenario)?;
+    builder.add_default_plugins();
+    if let Some(plugin) = settling {
+        builder.add_plugin(plugin);
+    }
+    let mut sim = builder.build()?;
+    sim.run()?;
+    Ok(sim)
+}
+
 fn main() -> anyhow::Result<()> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/quick_demo.json");
     let base = Scenario::load(&path)?;
-    let settling = SettlingPlugin {
-        gravity: DVec3::new(0.0, 0.0, -2e4),
-        gas: DVec3::new(0.0, 0.0, 20.0),
-        tau0: 1e-3,
-    };
-    for core in ["events", "stepped"] {
+    for core in [
+        agglo::scenario::Core::Events,
+        agglo::scenario::Core::Stepped,
+    ] {
         let mut scenario = base.clone();
-        scenario.time.core = if core == "events" {
-            agglo::scenario::Core::Events
-        } else {
-            agglo::scenario::Core::Stepped
-        };
-        for with_field in [false, true] {
-            let mut builder = Simulation::builder(&scenario)?;
-            builder.add_default_plugins();
-            if with_field {
-                builder.add_plugin(&settling);
-            }
-            let mut sim = builder.build()?;
-            sim.run()?;
+        scenario.time.core = core;
+        for settling in [None, Some(&SETTLING)] {
+            let sim = run(&scenario, settling)?;
             let s = sim.summary();
             println!(
-                "{core:>7} core, {:<22}: {:>5} impacts, {:>4} bonds, b_f/b0 = {:.3}, {:.3} s",
-                if with_field {
+                "{:>7} core, {:<15}: {:>5} impacts, {:>4} bonds, b_f/b0 = {:.3}, {:.3} s",
+                sim.pipeline().core,
+                if settling.is_some() {
                     "drag + settling"
                 } else {
                     "no field"
@@ -82,7 +93,7 @@ fn main() -> anyhow::Result<()> {
                 s.growth.growth_ratio,
                 s.wall_seconds
             );
-            if with_field && core == "events" {
+            if settling.is_some() && sim.pipeline().core == "event" {
                 for line in &sim.pipeline().forces {
                     println!("    {line}");
                 }

@@ -206,31 +206,25 @@ pub fn contact_search(
         } else {
             -w.length()
         };
-        if gap <= tolerance {
-            if rate < 0.0 {
-                return Search::At(s);
-            }
-            if s == 0.0 {
-                // Touching or overlapping but not approaching now: a differential flight
-                // may turn them back towards each other, so look again shortly (once the
-                // relative motion has changed by a fraction of the contact distance).
-                let accel = fa.acceleration_bound(va, 0.0) + fb.acceleration_bound(vb, 0.0);
-                let wait = (0.1 * reach / accel.max(f64::MIN_POSITIVE)).sqrt();
-                return if wait >= horizon {
-                    Search::Clear
-                } else {
-                    Search::NotBefore(wait)
-                };
-            }
+        if gap <= tolerance && rate < 0.0 {
+            return Search::At(s);
         }
+        // Touching but separating (a pair that has just bounced): the step below treats
+        // the gap as zero, so it runs to where the bound parabola G' h − ½ A h² comes
+        // back to zero — a differential flight may turn the pair back before it.
         let accel = fa.acceleration_bound(va, s) + fb.acceleration_bound(vb, s);
-        let h = safe_step(gap, rate, accel);
+        let mut h = safe_step(gap, rate, accel);
+        if h <= f64::EPSILON * s {
+            if rate < 0.0 {
+                return Search::At(s); // converged to rounding
+            }
+            // Grazing at rounding level, not approaching: step past it by the time the
+            // bound parabola needs to move by the touching tolerance.
+            h = (2.0 * tolerance / accel).sqrt();
+        }
         // An infinite step (nothing can close the gap) or one past the horizon ends it.
         if !h.is_finite() || s + h > horizon {
             return Search::Clear;
-        }
-        if h <= f64::EPSILON * s {
-            return Search::At(s); // converged to rounding
         }
         s += h;
     }
@@ -419,6 +413,30 @@ mod tests {
                 (found, sampled) => panic!("lateral {lateral:e}: {found:?} vs {sampled:?}"),
             }
         }
+    }
+
+    #[test]
+    fn a_pair_that_has_just_bounced_is_found_again_when_settling_brings_it_back() {
+        // Touching and separating now (a bounce), but the big grain (b, larger τ) falls
+        // faster and catches the small one below it again: found at the sampled time.
+        let g = DVec3::new(0.0, 0.0, -9.81e3);
+        let (ta, tb) = (1e-3, 2e-3);
+        let (fa, fb) = (drag(ta, g * ta), drag(tb, g * tb));
+        let reach = 2e-4;
+        let d = DVec3::new(0.0, 0.0, reach); // b directly above a, touching
+        let (va, vb) = (DVec3::new(0.0, 0.0, -5.0), DVec3::new(0.0, 0.0, -4.0)); // separating
+        let found = contact_search(d, va, vb, &fa, &fb, reach, 1.0);
+        let Search::At(s) = found else {
+            panic!("{found:?}")
+        };
+        let sampled = (1..=200_000)
+            .map(|k| 0.02 * k as f64 / 200_000.0)
+            .find(|&t| (d + fb.displacement(vb, t) - fa.displacement(va, t)).length() <= reach)
+            .unwrap();
+        assert!(
+            s > 0.0 && (s - sampled).abs() <= 0.02 / 200_000.0,
+            "{s} vs {sampled}"
+        );
     }
 
     #[test]

@@ -9,6 +9,9 @@ mod charged_grains;
 #[allow(dead_code)]
 #[path = "../../examples/collision_kernel.rs"]
 mod collision_kernel;
+#[allow(dead_code)]
+#[path = "../../examples/gas_drag.rs"]
+mod gas_drag;
 
 fn quick_demo(core: &str) -> Scenario {
     let text = std::fs::read_to_string("scenarios/quick_demo.json").unwrap();
@@ -83,4 +86,52 @@ fn the_collision_kernel_of_a_dilute_cloud_is_ballistic() {
         assert_eq!(text.lines().count(), 7);
         assert!(text.starts_with("i,j,m_i,m_j,r_i,r_j,impacts,expected,K_measured,K_ballistic,z"));
     }
+}
+
+/// The gas_drag example's settling field: the event core and the stepped core agree
+/// over 8 seeds on impacts, bonds and growth within 3 standard errors of the difference
+/// of their means, the field changes the run, and nothing is missed or violated.
+#[test]
+fn gas_drag_settles_alike_on_both_cores() {
+    let mut observed: [Vec<[f64; 3]>; 2] = [Vec::new(), Vec::new()];
+    let mut plain_bonds = Vec::new();
+    for seed in 0..8u64 {
+        for (k, core) in ["events", "stepped"].into_iter().enumerate() {
+            let mut s = quick_demo(core);
+            s.seed = seed;
+            let sim = gas_drag::run(&s, Some(&gas_drag::SETTLING)).unwrap();
+            let c = sim.counters();
+            assert_eq!(
+                c.invariant_violations,
+                0,
+                "{core}: {:?}",
+                sim.invariants().violations
+            );
+            if k == 0 {
+                assert_eq!(c.overlap_violations, 0, "missed contacts on the event core");
+                plain_bonds.push(gas_drag::run(&s, None).unwrap().counters().bonds as f64);
+            }
+            let growth = sim.summary().growth.growth_ratio;
+            observed[k].push([c.impacts as f64, c.bonds as f64, growth]);
+        }
+    }
+    let mean_se = |xs: &[f64]| {
+        let n = xs.len() as f64;
+        let m = xs.iter().sum::<f64>() / n;
+        let v = xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+        (m, (v / n).sqrt())
+    };
+    for (i, what) in ["impacts", "bonds", "growth"].iter().enumerate() {
+        let e: Vec<f64> = observed[0].iter().map(|r| r[i]).collect();
+        let s: Vec<f64> = observed[1].iter().map(|r| r[i]).collect();
+        let ((me, se), (ms, ss)) = (mean_se(&e), mean_se(&s));
+        let bound = 3.0 * (se * se + ss * ss).sqrt();
+        assert!(
+            (me - ms).abs() <= bound.max(1e-12 * me.abs()),
+            "{what}: events {me} ± {se}, stepped {ms} ± {ss}"
+        );
+    }
+    // The field matters: settling changes how many pairs bond.
+    let with_field: Vec<f64> = observed[0].iter().map(|r| r[1]).collect();
+    assert_ne!(with_field, plain_bonds);
 }
