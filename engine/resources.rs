@@ -258,6 +258,28 @@ impl StepEvents {
     }
 }
 
+/// When force systems kick (`SimBuilder::add_force_systems`): every step (no interval
+/// declared), or every declared interval h [s] (`SimBuilder::set_force_interval`): then
+/// they run when the time since the last kick reaches h, acting over that time, and
+/// steps land on the kick times, so between kicks bodies fly as the cores predict and
+/// the event core re-predicts the kicked bodies once per interval, not once per event.
+#[derive(Resource, Debug, Default, Clone, Copy, PartialEq)]
+pub struct ForceKicks {
+    /// The declared interval h [s] (None: every step).
+    pub interval: Option<f64>,
+    /// Time of the last kick [s].
+    pub last: f64,
+    /// Kicks so far.
+    pub kicks: u64,
+}
+
+impl ForceKicks {
+    /// The time the next kick is due [s], if kicks follow a declared interval.
+    pub fn next(&self) -> Option<f64> {
+        self.interval.map(|h| self.last + h)
+    }
+}
+
 /// True when bodies hold their state at their own [`crate::components::LocalTime`]
 /// (the event core) rather than at the current time (the stepped core).
 #[derive(Resource, Debug, Default, Clone, Copy, PartialEq, Eq)]

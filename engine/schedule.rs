@@ -40,9 +40,35 @@ pub struct SimStep;
 #[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ForceStep;
 
-/// Runs the force systems (stage `Forces`).
+/// Runs the force systems (stage `Forces`): every step, or when a declared interval has
+/// passed since the last kick ([`ForceKicks`]).
 fn run_forces(world: &mut World) {
+    kick(world, false);
+}
+
+/// One kick of the force systems over the interval since the last one: `SimClock::dt`
+/// is that interval while they run (what `Bodies::dt` reports), restored after. With a
+/// declared interval the kick waits until it has passed (or the run ends, `at_end`).
+fn kick(world: &mut World, at_end: bool) {
+    let clock = *world.resource::<SimClock>();
+    let kicks = *world.resource::<ForceKicks>();
+    let Some(interval) = kicks.interval else {
+        world.run_schedule(ForceStep);
+        world.resource_mut::<ForceKicks>().kicks += 1;
+        return;
+    };
+    let elapsed = clock.time - kicks.last;
+    // Due at last + h (steps land there; allow rounding of the sum of step lengths).
+    let due = elapsed >= interval * (1.0 - 1e-9);
+    if !(due || at_end) || elapsed <= 0.0 {
+        return;
+    }
+    world.resource_mut::<SimClock>().dt = elapsed;
     world.run_schedule(ForceStep);
+    world.resource_mut::<SimClock>().dt = clock.dt;
+    let mut k = world.resource_mut::<ForceKicks>();
+    k.last = clock.time;
+    k.kicks += 1;
 }
 
 /// The stages of one step L → L+1, chained in this order.
@@ -217,6 +243,7 @@ impl SimBuilder {
         world.init_resource::<StateChanged>();
         world.init_resource::<StepEvents>();
         world.init_resource::<BodiesGate>();
+        world.init_resource::<ForceKicks>();
         world.insert_resource(LazyState(uses_event_core(time, physics)));
 
         let mut schedule = Schedule::new(SimStep);
@@ -322,6 +349,22 @@ impl SimBuilder {
             self.runs_forces = true;
         }
         self
+    }
+
+    /// Declare the longest interval h [s] between kicks of the force systems: they then
+    /// run when h has passed since the last kick, acting over it, instead of at every
+    /// step, and steps land on the kick times. Between kicks bodies fly as the core
+    /// predicts (exact contacts along the piecewise trajectory), so the event core
+    /// re-predicts the kicked bodies once per h instead of once per event; the kick's
+    /// error is O(h) (docs/model.md §4.7). h must be positive and finite.
+    pub fn set_force_interval(&mut self, h: f64) -> Result<&mut Self, SimError> {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(SimError::Schedule(format!(
+                "the force interval must be a positive, finite time [s]; got {h:e}"
+            )));
+        }
+        self.world.resource_mut::<ForceKicks>().interval = Some(h);
+        Ok(self)
     }
 
     pub fn insert_resource<R: Resource>(&mut self, value: R) -> &mut Self {
@@ -506,7 +549,11 @@ impl SimBuilder {
             core_reason: self.core_reason,
             systems,
             left_out: self.left_out,
-            forces: forces_text(self.world.get_resource::<Field>(), has_forces),
+            forces: forces_text(
+                self.world.get_resource::<Field>(),
+                has_forces,
+                self.world.resource::<ForceKicks>(),
+            ),
         };
         Ok(Simulation {
             world: self.world,
@@ -572,7 +619,12 @@ fn refuse_stale_reads(
             .collect();
         if !stale.is_empty() {
             return Err(SimError::Schedule(format!(
-                "system `{}` queries {} directly, but this scene runs on the event core, where                  each body holds its state at its own reference time (docs/model.md §4): the                  query would read stale state. Read and write bodies through the `Bodies`                  system parameter (agglo::bodies::Bodies), which brings each body to the                  current time and has the event core re-predict what changes; or run the scene                  on the stepped core (time.core = \"stepped\")",
+                "system `{}` queries {} directly, but this scene runs on the event core, where \
+                 each body holds its state at its own reference time (docs/model.md §4): the \
+                 query would read stale state. Read and write bodies through the `Bodies` \
+                 system parameter (agglo::bodies::Bodies), which brings each body to the \
+                 current time and has the event core re-predict what changes; or run the scene \
+                 on the stepped core (time.core = \"stepped\")",
                 short_name(&system.name().to_string()),
                 stale.join(", ")
             )));
@@ -582,13 +634,23 @@ fn refuse_stale_reads(
 }
 
 /// The fields and forces of a scene and the path each takes (for [`Pipeline::forces`]).
-fn forces_text(field: Option<&Field>, has_force_systems: bool) -> Vec<String> {
+fn forces_text(field: Option<&Field>, has_force_systems: bool, kicks: &ForceKicks) -> Vec<String> {
     let mut lines: Vec<String> = field.and_then(Field::describe).into_iter().collect();
     if has_force_systems {
-        lines.push(
-            "general forces (SimBuilder::add_force_systems): a kick to every body it changes              at the start of each step, over the step just taken — the slow path: O(N) per              step on either core, accurate to O(Δt) (Δt ≤ time.stepping.adaptive.dt_max);              declare uniform g or linear drag as a field instead"
+        lines.push(match kicks.interval {
+            None => "general forces (SimBuilder::add_force_systems): a kick to every body they \
+                     change at the start of each step, over the step just taken — the slow \
+                     path: O(N) per step on either core, accurate to O(Δt) (Δt ≤ Δt_max); \
+                     declare a force interval (SimBuilder::set_force_interval) to kick less \
+                     often, or uniform g or linear drag as a field"
                 .into(),
-        );
+            Some(h) => format!(
+                "general forces (SimBuilder::add_force_systems): a kick every h = {h:e} s \
+                 (SimBuilder::set_force_interval) over the interval since the last, steps \
+                 landing on the kicks — the slow path: O(N) per kick, accurate to O(h); \
+                 between kicks the core's exact contacts"
+            ),
+        });
     }
     lines
 }
@@ -741,7 +803,7 @@ impl Simulation {
         }
         if self.has_forces {
             // The last interval's kick (forces act at the end of each interval).
-            self.world.run_schedule(ForceStep);
+            kick(&mut self.world, true);
         }
         self.bring_all_to_now();
         Ok(())

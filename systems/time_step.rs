@@ -21,7 +21,7 @@ use glam::DVec3;
 use super::contact::{BodyQuery, NeighbourTable, search_margin};
 pub use agglo_engine::laws::contact_time::time_to_contact;
 use agglo_engine::params::SceneConstants;
-use agglo_engine::resources::{Counters, SimClock, StateChanged};
+use agglo_engine::resources::{Counters, ForceKicks, SimClock, StateChanged};
 use agglo_engine::scene::Stepping;
 
 /// The system.
@@ -32,6 +32,7 @@ pub fn choose_time_step(
     mut table: ResMut<NeighbourTable>,
     mut clock: ResMut<SimClock>,
     mut counters: ResMut<Counters>,
+    kicks: Res<ForceKicks>,
 ) {
     let SceneConstants {
         geometry,
@@ -79,7 +80,11 @@ pub fn choose_time_step(
             wanted.max(dt_min).min(upper)
         }
     };
-    clock.dt = dt.min(remaining);
+    // Land on the next kick of forces that declared an interval.
+    let to_kick = kicks
+        .next()
+        .map_or(f64::INFINITY, |t| (t - clock.time).max(0.0));
+    clock.dt = dt.min(remaining).min(to_kick);
 }
 
 /// Smallest exact time to contact over approaching neighbour pairs [s] (∞ if none).

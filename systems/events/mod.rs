@@ -35,7 +35,9 @@ use agglo_engine::bodies::{Clockwork, LazyBody, bring_to};
 use agglo_engine::components::{
     Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
 };
-use agglo_engine::resources::{BoxGeometry, Contact, ContactList, Counters, SimClock, StepEvents};
+use agglo_engine::resources::{
+    BoxGeometry, Contact, ContactList, Counters, ForceKicks, SimClock, StepEvents,
+};
 use agglo_engine::totals::Totals;
 
 /// Events closer than this (relative to t) count as simultaneous.
@@ -355,11 +357,23 @@ fn settle(core: &mut EventCore, now: f64, limit: f64) {
 }
 
 /// Δt to the calendar's next event, bounded by Δt_max and the time left.
-fn step_to_next_event(core: &EventCore, clock: &SimClock, end: f64, dt_max: f64) -> f64 {
+fn step_to_next_event(
+    core: &EventCore,
+    clock: &SimClock,
+    end: f64,
+    dt_max: f64,
+    kicks: &ForceKicks,
+) -> f64 {
     let now = clock.time;
     let remaining = (end - now).max(0.0);
     let next = core.peek().map_or(f64::INFINITY, |(_, e)| e.time);
-    (next - now).max(0.0).min(dt_max).min(remaining)
+    // Land on the next kick of forces that declared an interval.
+    let to_kick = kicks.next().map_or(f64::INFINITY, |t| (t - now).max(0.0));
+    (next - now)
+        .max(0.0)
+        .min(dt_max)
+        .min(remaining)
+        .min(to_kick)
 }
 
 /// Stage `TimeStep`: re-predict what changed and choose Δt to the next contact.
@@ -370,6 +384,7 @@ pub fn schedule_next_step(
     bodies: ReadQuery,
     mut events: ResMut<StepEvents>,
     field: Option<Res<Field>>,
+    kicks: Res<ForceKicks>,
 ) {
     let now = clock.time;
     let field = field.as_deref().copied().unwrap_or_default();
@@ -381,7 +396,7 @@ pub fn schedule_next_step(
         core.renumber(now);
     }
     clock.clamped_at_min = false;
-    clock.dt = step_to_next_event(&core, &clock, time.end, dt_max);
+    clock.dt = step_to_next_event(&core, &clock, time.end, dt_max, &kicks);
 }
 
 /// Count the core's missed contacts into the run's counters (stage `Boundary`).

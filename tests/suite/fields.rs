@@ -370,3 +370,86 @@ fn validate_says_which_path_the_field_takes() {
     assert!(text.contains("field: linear drag (Epstein"), "{text}");
     assert!(text.contains("root search"), "{text}");
 }
+
+/// Linear drag toward `u` with one τ as a general force: each kick relaxes the velocity
+/// exactly over the interval it acts on (`Bodies::dt`).
+#[derive(Resource, Clone, Copy)]
+struct KickedDrag {
+    tau: f64,
+    u: DVec3,
+}
+
+fn kicked_drag(drag: Res<KickedDrag>, mut bodies: Bodies) {
+    let decay = (-bodies.dt() / drag.tau).exp();
+    bodies.update_all(|b| b.velocity = drag.u + (b.velocity - drag.u) * decay);
+}
+
+fn with_kicked_drag(s: &Scenario, interval: Option<f64>) -> Simulation {
+    let mut builder = Simulation::builder(s).unwrap();
+    builder
+        .add_default_plugins()
+        .insert_resource(KickedDrag {
+            tau: 5e-4,
+            u: DVec3::new(0.0, 0.0, 10.0),
+        })
+        .add_force_systems(kicked_drag);
+    if let Some(h) = interval {
+        builder.set_force_interval(h).unwrap();
+    }
+    let mut sim = builder.build().unwrap();
+    sim.run().unwrap();
+    sim
+}
+
+#[test]
+fn a_declared_force_interval_kicks_once_per_interval_on_either_core() {
+    // One body: each kick is exact for the velocity, so after all kicks v is the closed
+    // form whatever h; the kicks are T/h (the last lands on T).
+    let h = 1e-4;
+    for (core, time) in cores() {
+        let s = one_body(json!({}), time);
+        let sim = with_kicked_drag(&s, Some(h));
+        let kicks = sim.world().resource::<agglo::resources::ForceKicks>().kicks;
+        assert_eq!(kicks, 20, "{core}: T/h = 20 kicks");
+        let (u, v0) = (DVec3::new(0.0, 0.0, 10.0), DVec3::new(3.0, -1.0, 2.0));
+        let v = u + (v0 - u) * (-0.002f64 / 5e-4).exp();
+        let got = sim.bodies()[0].velocity;
+        assert!(relative(got, v) <= 1e-9, "{core}: {got} vs {v}");
+        assert!(sim.pipeline().forces[0].contains("a kick every h = 1e-4 s"));
+    }
+    // A busy cloud on the event core: many events, few kicks, ledgers closed.
+    let s = scenario(json!({
+        "box": { "half_width": 0.005 },
+        "cloud": { "count": 300, "radius": null, "size_ratio": 0.5, "v_rel": [20, 20, 20] },
+        "time": { "core": "events" }
+    }));
+    let every_step = with_kicked_drag(&s, None);
+    let interval = with_kicked_drag(&s, Some(h));
+    let kicks = |sim: &Simulation| sim.world().resource::<agglo::resources::ForceKicks>().kicks;
+    assert!(
+        every_step.clock().step > 200,
+        "busy: {} steps",
+        every_step.clock().step
+    );
+    assert_eq!(kicks(&every_step), every_step.clock().step + 1);
+    assert_eq!(kicks(&interval), 20);
+    assert_eq!(interval.counters().invariant_violations, 0);
+    assert_eq!(interval.counters().overlap_violations, 0);
+}
+
+#[test]
+fn a_bad_force_interval_is_refused() {
+    let s = scenario(json!({}));
+    for h in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
+        let mut builder = Simulation::builder(&s).unwrap();
+        let e = builder
+            .set_force_interval(h)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(
+            e.contains("force interval must be a positive, finite time"),
+            "{e}"
+        );
+    }
+}
