@@ -37,8 +37,13 @@ pub enum Command {
         /// Scenario file (JSON).
         scenario: PathBuf,
     },
-    /// Print the JSON Schema of the scenario format.
-    Schema,
+    /// Print the JSON Schema of the scenario format (or, with --outputs, every output's
+    /// columns and summary keys with their units).
+    Schema {
+        /// Print the outputs' columns and keys (docs/outputs.md) instead.
+        #[arg(long)]
+        outputs: bool,
+    },
     /// Summarise an MCAP recording: channels, counts, duration, scenario, final statistics.
     Inspect {
         /// Recording (MCAP) written by `agglo run --out`.
@@ -126,6 +131,13 @@ pub struct RunArgs {
     /// Write one CSV row per body at the end here.
     #[arg(long)]
     pub final_state: Option<PathBuf>,
+    /// Time series, size distribution and snapshots, and when they are sampled.
+    #[command(flatten)]
+    pub tables: agglo::output::TableArgs,
+    /// Override a scenario field: PATH=VALUE, VALUE parsed as JSON (else a string), e.g.
+    /// `--set time.end=0.01 --set cloud.size_ratio=0.3` (repeatable; checked as the file is).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    pub set: Vec<String>,
     /// No progress bar and no end-of-run report (warnings still go to stderr).
     #[arg(long, short)]
     pub quiet: bool,
@@ -152,7 +164,11 @@ fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow:
         Command::Run(args) => run(args),
         Command::Validate { scenario } => validate(&scenario),
         Command::Study(study) => run_study(study, cluster),
-        Command::Schema => {
+        Command::Schema { outputs: true } => {
+            print!("{}", agglo::output::schema::outputs_markdown());
+            Ok(())
+        }
+        Command::Schema { outputs: false } => {
             println!(
                 "{}",
                 serde_json::to_string_pretty(&Scenario::json_schema())?
@@ -263,9 +279,13 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         (None, None) => anyhow::bail!("give a scenario file or --from RECORDING"),
     };
+    if !args.set.is_empty() {
+        scenario = scenario.with_settings(&args.set)?;
+    }
     if let Some(seed) = args.seed {
         scenario.seed = seed;
     }
+    let table_paths = args.tables.paths(&scenario.output)?;
     let summary_path = args
         .summary
         .clone()
@@ -295,6 +315,7 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
+    let mut tables = agglo::output::RunTables::open(&table_paths, &scenario, &sim)?;
     let mut clamp_watch = clamping_floor(&scenario).map(|dt_min| (ClampWatch::new(0, 0), dt_min));
     let mut record_error: Option<anyhow::Error> = None;
     let show_progress = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
@@ -340,6 +361,12 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
             record_error = Some(e);
             return ControlFlow::Break(());
         }
+        if let Some(t) = tables.as_mut()
+            && let Err(e) = t.observe(s)
+        {
+            record_error = Some(e);
+            return ControlFlow::Break(());
+        }
         if stop.requested() {
             ControlFlow::Break(())
         } else {
@@ -373,6 +400,9 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         }
     }
     // Write what we have even when the run failed: nothing is lost.
+    if let Some(t) = tables.take() {
+        t.finish(&sim)?;
+    }
     let bodies = sim.bodies();
     let summary = Summary::new(&sim, &bodies);
     if let Some(path) = &final_path {

@@ -366,6 +366,45 @@ impl Scenario {
     }
 }
 
+/// `base` with each `PATH=VALUE` applied (VALUE parsed as JSON, else taken as a string),
+/// then parsed and checked as a file is; the name gains the settings so the outputs say
+/// what ran. `agglo run --set` and `agglo study readings --set`.
+pub fn with_settings(base: &Scenario, settings: &[String]) -> anyhow::Result<Scenario> {
+    use serde_json::Value;
+    let mut value = serde_json::to_value(base)?;
+    for setting in settings {
+        let (path, raw) = setting
+            .split_once('=')
+            .ok_or_else(|| anyhow::anyhow!("--set {setting}: expected PATH=VALUE"))?;
+        let new: Value = serde_json::from_str(raw).unwrap_or_else(|_| Value::from(raw));
+        let mut slot = &mut value;
+        for key in path.split('.') {
+            slot = match slot {
+                // A missing key is added; the scenario's own parsing then names it if unknown.
+                Value::Object(map) => map.entry(key).or_insert(Value::Null),
+                Value::Array(items) => key
+                    .parse::<usize>()
+                    .ok()
+                    .and_then(|k| items.get_mut(k))
+                    .ok_or_else(|| anyhow::anyhow!("--set {setting}: no element `{key}`"))?,
+                _ => anyhow::bail!("--set {setting}: the scenario has no field `{key}` there"),
+            };
+        }
+        *slot = new;
+    }
+    let mut scenario = Scenario::from_value(value)
+        .map_err(|e| anyhow::anyhow!("--set {}: {e}", settings.join(" ")))?;
+    scenario.name = format!("{} ({})", base.name, settings.join(", "));
+    Ok(scenario)
+}
+
+impl Scenario {
+    /// This scenario with `--set PATH=VALUE` settings applied: [`with_settings`].
+    pub fn with_settings(&self, settings: &[String]) -> anyhow::Result<Scenario> {
+        with_settings(self, settings)
+    }
+}
+
 /// What a JSON text starting with `first` holds at its top level, if `first` can start
 /// one: used to say what a scenario file holds instead of an object.
 fn json_kind(first: char) -> Option<&'static str> {

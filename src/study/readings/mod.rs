@@ -64,8 +64,9 @@ mod catalogue;
 mod cli;
 mod report;
 
+pub use crate::scenario::with_settings;
 pub use catalogue::catalogue;
-pub use cli::{ReadingsArgs, run_cli, with_settings};
+pub use cli::{ReadingsArgs, run_cli};
 pub use report::{markdown, write_readings};
 
 /// One run of the study as a task of the farm: the scene, patched and capped, as JSON
