@@ -6,10 +6,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 
 mod clamp_watch;
 mod inverse;
+mod progress;
 mod ranks;
 mod signals;
 
@@ -319,26 +319,11 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut clamp_watch = clamping_floor(&scenario).map(|dt_min| (ClampWatch::new(0, 0), dt_min));
     let mut record_error: Option<anyhow::Error> = None;
     let show_progress = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
-    let bar = if show_progress {
-        let bar = ProgressBar::new(1000);
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg} (eta {eta})",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        Some(bar)
-    } else {
-        None
-    };
-    let end = scenario.time.end;
+    let mut bar = show_progress
+        .then(|| progress::Progress::new(scenario.time.end, scenario.uses_event_core()));
     let outcome = sim.run_with(|s| {
-        if let Some(bar) = &bar {
-            let c = s.clock();
-            if c.step % 64 == 0 {
-                bar.set_position((1000.0 * c.time / end) as u64);
-                bar.set_message(format!("step {} t = {:.3e} s", c.step, c.time));
-            }
+        if let Some(bar) = bar.as_mut() {
+            bar.update(s);
         }
         if let Some((watch, dt_min)) = clamp_watch.as_mut() {
             let c = s.clock();
@@ -374,7 +359,7 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         }
     });
     if let Some(bar) = &bar {
-        bar.finish_and_clear();
+        bar.finish();
     }
 
     // Finalise the recording whatever happened (summary section written), then the rest.

@@ -268,13 +268,43 @@ pub fn outputs_markdown() -> String {
                 Kind::Int => "integer",
                 Kind::Text => "text",
             };
-            s += &format!("| `{}` | {kind} | {} | {} |\n", c.name, c.unit, c.doc);
+            s += &format!("| `{}` | {kind} | {} | {} |\n", c.name, c.unit, cell(c.doc));
         }
     }
     s += "\n## `--summary`: JSON, one object (nested keys joined with `.`)\n\n\
           | key | unit | meaning |\n|---|---|---|\n";
     for k in SUMMARY_KEYS {
-        s += &format!("| `{}` | {} | {} |\n", k.name, k.unit, k.doc);
+        s += &format!("| `{}` | {} | {} |\n", k.name, k.unit, cell(k.doc));
     }
+    s += CONTINUING;
     s
 }
+
+/// `text` inside a Markdown table cell (a `|` would end the cell).
+fn cell(text: &str) -> String {
+    text.replace('|', "\\|")
+}
+
+/// How a run continues from a table, and what is not carried.
+const CONTINUING: &str = "
+## Starting from a table: `cloud.from_file`
+
+`cloud.from_file` reads the bodies of a `--final-state` or `--snapshots` file (CSV or
+Parquet; with a `t` column, the rows of the last t): columns `x, y, z` required; `vx, vy,
+vz`, `id`, `mass`, `radius`, `temperature`, `primaries` optional (`hardness` follows θ).
+Give `cloud.radius` = b0 of the run that wrote the file (a mass that disagrees with
+primaries × m_primary by more than 1e-9 is refused, naming the body). The checks
+(in the box, distinct ids, no overlaps, over the neighbour grid) are the ones
+`agglo validate` makes.
+
+Carried: every body's id, position, velocity, mass, radius, temperature and primaries,
+so new ids continue past the largest. Not carried: the clock (the continued run starts
+at t = 0 and runs for its own `time.end`), the random generator's state (a continued
+run draws from a fresh generator of its seed: fragmentation's draws differ), the
+event core's calendar (rebuilt from the bodies: the same predictions, up to the
+rounding of times measured from a new origin), the counters, the energy ledger and the
+invariants' reference totals (they start again from the loaded state). On the stepped
+core with a fixed Δt, a run without random draws after set-up continued from its own
+final state ends bit for bit where the uninterrupted run ends when Δt and the split
+time are exact in binary (`tests/suite/initial_data.rs`).
+";

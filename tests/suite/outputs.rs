@@ -323,3 +323,112 @@ fn agglo_run_writes_the_tables_the_flags_and_the_scenario_name() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(err.contains("interval.dt") && err.contains("> 0"), "{err}");
 }
+
+/// Keys of a JSON object, nested keys joined with `.` (arrays are values).
+fn keys(v: &serde_json::Value, prefix: &str, out: &mut Vec<String>) {
+    if let serde_json::Value::Object(map) = v {
+        for (k, v) in map {
+            let name = if prefix.is_empty() {
+                k.clone()
+            } else {
+                format!("{prefix}.{k}")
+            };
+            if v.is_object() {
+                keys(v, &name, out);
+            } else {
+                out.push(name);
+            }
+        }
+    }
+}
+
+#[test]
+fn every_summary_key_is_documented_and_every_documented_key_exists() {
+    use agglo::output::schema::SUMMARY_KEYS;
+    let mut seen = Vec::new();
+    // The event core's summary has `events`; the stepped core's does not.
+    for core in ["events", "stepped"] {
+        let mut s = merging_cloud();
+        s.time.core = serde_json::from_value(json!(core)).unwrap();
+        if core == "stepped" {
+            s.time.end = 2e-4;
+        }
+        let mut sim = Simulation::new(&s).unwrap();
+        sim.run().unwrap();
+        keys(&serde_json::to_value(sim.summary()).unwrap(), "", &mut seen);
+    }
+    for k in &seen {
+        assert!(
+            SUMMARY_KEYS.iter().any(|d| d.name == k),
+            "summary key `{k}` is not documented"
+        );
+    }
+    for d in SUMMARY_KEYS {
+        assert!(
+            seen.iter().any(|k| k == d.name),
+            "documented key `{}` is not in a summary",
+            d.name
+        );
+    }
+}
+
+#[test]
+fn docs_outputs_md_is_what_agglo_schema_outputs_prints() {
+    let docs =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/outputs.md"))
+            .unwrap();
+    let printed = agglo(
+        &["schema", "--outputs"],
+        Path::new(env!("CARGO_MANIFEST_DIR")),
+    );
+    assert!(printed.status.success());
+    assert_eq!(
+        docs,
+        String::from_utf8(printed.stdout).unwrap(),
+        "regenerate: agglo schema --outputs > docs/outputs.md"
+    );
+}
+
+#[test]
+fn run_set_overrides_fields_and_is_checked_like_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.json"), merging_cloud().to_json()).unwrap();
+    let out = agglo(
+        &[
+            "run",
+            "scene.json",
+            "-q",
+            "--set",
+            "time.end=1e-4",
+            "--set",
+            "cloud.count=50",
+            "--summary",
+            "s.json",
+        ],
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("s.json")).unwrap()).unwrap();
+    assert_eq!(summary["time"], json!(1e-4));
+    assert_eq!(summary["initial_bodies"], json!(50));
+    let bad = agglo(
+        &["run", "scene.json", "-q", "--set", "material.rho=-1"],
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("material.rho") && err.contains("> 0"),
+        "{err}"
+    );
+    let typo = agglo(
+        &["run", "scene.json", "-q", "--set", "time.ned=1"],
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&typo.stderr);
+    assert!(!typo.status.success() && err.contains("ned"), "{err}");
+}

@@ -509,7 +509,7 @@ mod tests {
         // The merged patch carries both readings.
         let s = scenario_for(&base, &combos[5], base.seed, None).unwrap();
         assert_eq!(s.impact.max_iterations, 101);
-        assert_eq!(s.cloud.v_rel[1], 10.0);
+        assert_eq!(s.cloud.v_rel.unwrap()[1], 10.0);
     }
 
     #[test]
