@@ -16,6 +16,8 @@
 //! - [`setup`], [`scene`], [`cloud`], [`error`]: the [`setup::Scene`] a run is built
 //!   from, the sections of it the engine owns (box, material, time, physics), the initial
 //!   cloud and its section, and the typed errors;
+//! - [`hooks`]: typed messages at every impact, merge and fragmentation, for
+//!   extensions that subscribe;
 //! - [`params`]: system parameters grouping what a stage reads and writes together;
 //! - [`observables`], [`totals`]: what a run measures (docs/model.md §10, §11).
 //!
@@ -26,6 +28,7 @@ pub mod bodies;
 pub mod cloud;
 pub mod components;
 pub mod error;
+pub mod hooks;
 pub mod laws;
 pub mod observables;
 pub mod params;
@@ -45,6 +48,10 @@ pub mod prelude {
     pub use crate::bodies::Bodies;
     pub use crate::components::*;
     pub use crate::error::{ScenarioError, SimError};
+    pub use crate::hooks::{
+        FragmentMessage, ImpactMessage, ImpactOutcome, MergeMessage, MessageReader, MessageWriter,
+        Messages,
+    };
     pub use crate::observables::{Growth, RadiusStats, Summary};
     pub use crate::params::{RunBooks, SceneConstants};
     pub use crate::resources::{Counters, EnergyLedger, SimClock};

@@ -11,6 +11,7 @@
 
 use std::ops::ControlFlow;
 
+use bevy_ecs::message::{Message, Messages};
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{LogLevel, ScheduleBuildSettings, ScheduleLabel, SingleThreadedExecutor};
 use bevy_ecs::system::ScheduleSystem;
@@ -137,6 +138,8 @@ pub struct SimBuilder {
     core_reason: String,
     left_out: Vec<String>,
     core_stats: Option<fn(&World) -> EventStats>,
+    /// Subscribed message types and the function that rotates each one's buffers.
+    subscriptions: Vec<(std::any::TypeId, fn(&mut World))>,
 }
 
 impl SimBuilder {
@@ -215,6 +218,7 @@ impl SimBuilder {
             core_reason: String::new(),
             left_out: Vec::new(),
             core_stats: None,
+            subscriptions: Vec::new(),
         })
     }
 
@@ -302,6 +306,20 @@ impl SimBuilder {
         self
     }
 
+    /// Subscribe to a message type (e.g. [`crate::hooks::ImpactMessage`]): inserts its
+    /// `Messages<M>` buffer, which the built-in stages write only when it exists, and has
+    /// the simulation rotate it once per step, so that [`Simulation::step_messages`] and a
+    /// `MessageReader<M>` in [`StepSystems::Last`] see each message of a step once.
+    /// Subscribing twice is the same as once.
+    pub fn subscribe<M: Message>(&mut self) -> &mut Self {
+        let key = std::any::TypeId::of::<M>();
+        if !self.subscriptions.iter().any(|(k, _)| *k == key) {
+            self.world.init_resource::<Messages<M>>();
+            self.subscriptions.push((key, crate::hooks::rotate::<M>));
+        }
+        self
+    }
+
     /// Build one plugin into the simulation.
     pub fn add_plugin(&mut self, plugin: &dyn SimPlugin) -> &mut Self {
         plugin.build(self);
@@ -378,6 +396,7 @@ impl SimBuilder {
             pipeline,
             core_stats: self.core_stats,
             wall_seconds: 0.0,
+            rotations: self.subscriptions.into_iter().map(|(_, f)| f).collect(),
         })
     }
 }
@@ -416,6 +435,8 @@ pub struct Simulation {
     pipeline: Pipeline,
     core_stats: Option<fn(&World) -> EventStats>,
     wall_seconds: f64,
+    /// Rotate the buffers of each subscribed message type (before each step).
+    rotations: Vec<fn(&mut World)>,
 }
 
 impl Simulation {
@@ -498,6 +519,9 @@ impl Simulation {
             });
         }
         let start = std::time::Instant::now();
+        for rotate in &self.rotations {
+            rotate(&mut self.world);
+        }
         self.schedule.run(&mut self.world);
         self.wall_seconds += start.elapsed().as_secs_f64();
         Ok(())
@@ -604,6 +628,16 @@ impl Simulation {
             .collect();
         bodies.sort_by_key(|b| b.id);
         bodies
+    }
+
+    /// The messages of type `M` written during the step just taken, in the order they
+    /// were written; empty when nobody subscribed to `M` ([`SimBuilder::subscribe`]).
+    /// Read it from the observer of [`Simulation::run_with`], after each step.
+    pub fn step_messages<M: Message>(&self) -> impl Iterator<Item = &M> + '_ {
+        self.world
+            .get_resource::<Messages<M>>()
+            .into_iter()
+            .flat_map(|m| m.iter_current_update_messages())
     }
 
     /// Number of bodies now.

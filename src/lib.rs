@@ -35,8 +35,8 @@ pub mod study;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{
-    bodies, cloud, components, error, laws, observables, params, resources, scene, schedule, setup,
-    totals,
+    bodies, cloud, components, error, hooks, laws, observables, params, resources, scene, schedule,
+    setup, totals,
 };
 /// The built-in physics plugins (the `agglo-systems` crate).
 pub use agglo_systems as systems;

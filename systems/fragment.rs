@@ -12,7 +12,8 @@
 //!
 //! Reads: [`ImpactRecords`] (after merging). Writes: despawns/spawns bodies,
 //! [`Counters`], [`EnergyLedger`], [`IdAllocator`], [`SimClock::bodies_reshaped`],
-//! [`StepEvents`] (pieces spawned, parent removed).
+//! [`StepEvents`] (pieces spawned, parent removed); one [`FragmentMessage`] per
+//! fragmentation when an extension subscribed (engine/hooks.rs).
 
 use bevy_ecs::prelude::*;
 
@@ -22,6 +23,7 @@ use glam::DVec3;
 use agglo_engine::components::{
     BodyState, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
 };
+use agglo_engine::hooks::{FragmentMessage, Messages};
 use agglo_engine::resources::{IdAllocator, ImpactRecords};
 
 /// Number of equal pieces k = ⌊(1 + x)³⌋, x = δK / (4π γ b0²) (P04 (5.2)).
@@ -93,6 +95,7 @@ pub fn fragment_bodies(
     books: RunBooks,
     mut commands: Commands,
     mut absorbed: Local<Vec<(u64, Entity, f64)>>,
+    mut messages: Option<ResMut<Messages<FragmentMessage>>>,
 ) {
     let SceneConstants {
         material, geometry, ..
@@ -133,6 +136,7 @@ pub fn fragment_bodies(
         let theta = t.0 - dz / (m.0 * material.C);
         let piece_mass = m.0 / pieces as f64;
         let piece_radius = material.radius_of_mass(piece_mass);
+        let first_piece = ids.next;
         for offset in piece_offsets(pieces as usize, piece_radius) {
             let state = BodyState {
                 id: ids.allocate(),
@@ -148,6 +152,14 @@ pub fn fragment_bodies(
             events
                 .spawned
                 .push(commands.spawn(state.bundle_at(clock.time)).id());
+        }
+        if let Some(messages) = messages.as_mut() {
+            messages.write(FragmentMessage {
+                time: clock.time,
+                parent: id.0,
+                children: (first_piece..ids.next).collect(),
+                parent_mass: m.0,
+            });
         }
         commands.entity(entity).despawn();
         events.despawned.push(id.0);

@@ -15,7 +15,8 @@
 //! the ledgers close. With one impact per body it is zero and not computed.
 //!
 //! Reads: [`ImpactRecords`]. Writes: the survivor's components, despawns the partner,
-//! [`SimClock::bodies_reshaped`], [`StepEvents`] (the partner's id).
+//! [`SimClock::bodies_reshaped`], [`StepEvents`] (the partner's id); one [`MergeMessage`]
+//! per merge when an extension subscribed (engine/hooks.rs).
 
 use std::collections::HashMap;
 
@@ -26,6 +27,7 @@ use agglo_engine::params::{RunBooks, SceneConstants};
 use agglo_engine::components::{
     Hardness, Mass, Particle, ParticleId, Position, Primaries, Radius, Temperature, Velocity,
 };
+use agglo_engine::hooks::{MergeMessage, Messages};
 use agglo_engine::resources::ImpactRecords;
 use agglo_engine::scene::ImpactsPerStep;
 
@@ -52,6 +54,7 @@ pub fn merge_bonded(
     mut bodies: MergeQuery,
     books: RunBooks,
     mut commands: Commands,
+    mut messages: Option<ResMut<Messages<MergeMessage>>>,
 ) {
     let SceneConstants {
         material,
@@ -100,7 +103,7 @@ pub fn merge_bonded(
         } else {
             record.separation
         };
-        let (mut pa, mut va, mut ma, mut ra, mut ta, mut ha, mut na, _) = keep;
+        let (mut pa, mut va, mut ma, mut ra, mut ta, mut ha, mut na, id_a) = keep;
         let (_, vb, mb, _, tb, _, nb, id_b) = gone;
         let m = ma.0 + mb.0;
         let relative_motion = if several_impacts {
@@ -120,6 +123,14 @@ pub fn merge_bonded(
         ma.0 = m;
         ra.0 = material.radius_of_mass(m);
         ha.0 = material.hardness(ta.0);
+        if let Some(messages) = messages.as_mut() {
+            messages.write(MergeMessage {
+                time: clock.time,
+                parents: [id_a.0, id_b.0],
+                child: id_a.0,
+                mass: m,
+            });
+        }
         commands.entity(b).despawn();
         events.despawned.push(id_b.0);
         if several_impacts {

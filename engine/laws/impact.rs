@@ -210,7 +210,7 @@ pub fn trial(model: &PairModel, bi: &PairBody, bj: &PairBody, normal: DVec3, e: 
 }
 
 /// How many times the dissipated energy W heats the pair: 1, or 2 under P04 (6.10).
-fn work_heat_factor(rule: WorkHeat) -> f64 {
+pub fn work_heat_factor(rule: WorkHeat) -> f64 {
     match rule {
         WorkHeat::Once => 1.0,
         WorkHeat::Twice => 2.0,

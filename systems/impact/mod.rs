@@ -9,7 +9,8 @@
 //! section, defined in `settings.rs`).
 //! Writes: velocities, temperatures, hardness and positions (a bouncing pair that
 //! overlaps is pushed apart to touching) of the pair; [`ImpactRecords`],
-//! [`Counters`], [`EnergyLedger`], [`StateChanged`].
+//! [`Counters`], [`EnergyLedger`], [`StateChanged`]; one [`ImpactMessage`] per impact
+//! when an extension subscribed (engine/hooks.rs).
 //!
 //! The solve itself is the plain function [`solve_pair`] in `engine/laws/impact.rs`, free
 //! of ECS types, so it can be tested against the closed form of docs/model.md §14 and
@@ -21,7 +22,8 @@ use agglo_engine::params::{RunBooks, SceneConstants};
 use agglo_engine::scene::Material;
 
 use agglo_engine::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
-use agglo_engine::resources::{ContactList, ImpactRecord, ImpactRecords};
+use agglo_engine::hooks::{ImpactMessage, ImpactOutcome, Messages};
+use agglo_engine::resources::{Contact, ContactList, ImpactRecord, ImpactRecords};
 // The law (pure numerics) lives in the engine's laws; this module is its system.
 pub use agglo_engine::laws::impact::*;
 mod settings;
@@ -65,6 +67,38 @@ type ImpactQuery<'w, 's> = Query<
     With<Particle>,
 >;
 
+/// The message an impact writes for extensions (engine/hooks.rs), from the pair before
+/// the impact and the outcome.
+fn impact_message(
+    time: f64,
+    contact: &Contact,
+    a: &PairBody,
+    b: &PairBody,
+    out: &PairOutcome,
+    model: &PairModel,
+) -> ImpactMessage {
+    let relative = a.velocity - b.velocity;
+    let normal_speed = relative.dot(contact.normal);
+    ImpactMessage {
+        time,
+        id_a: contact.id_a,
+        id_b: contact.id_b,
+        mass_a: a.mass,
+        mass_b: b.mass,
+        radius_a: a.radius,
+        radius_b: b.radius,
+        normal_speed,
+        tangential_speed: (relative - normal_speed * contact.normal).length(),
+        restitution: out.restitution,
+        heat: out.dissipated * work_heat_factor(model.work_heat) + out.reaction_heat,
+        outcome: if out.bonded {
+            ImpactOutcome::Bond
+        } else {
+            ImpactOutcome::Bounce
+        },
+    }
+}
+
 /// The system: resolve every contact of [`ContactList`] in order.
 pub fn resolve_impacts(
     contacts: Res<ContactList>,
@@ -73,6 +107,7 @@ pub fn resolve_impacts(
     mut bodies: ImpactQuery,
     mut records: ResMut<ImpactRecords>,
     books: RunBooks,
+    mut messages: Option<ResMut<Messages<ImpactMessage>>>,
 ) {
     let SceneConstants {
         material, geometry, ..
@@ -108,6 +143,11 @@ pub fn resolve_impacts(
             temperature: tb.0,
         };
         let out = solve_pair(&model, &body_a, &body_b, contact.normal);
+        if let Some(messages) = messages.as_mut() {
+            messages.write(impact_message(
+                clock.time, contact, &body_a, &body_b, &out, &model,
+            ));
+        }
         va.0 = out.velocity_i;
         vb.0 = out.velocity_j;
         ta.0 = out.temperature_i;
