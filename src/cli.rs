@@ -300,7 +300,9 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         .clone()
         .or_else(|| scenario.output.mcap.clone().map(PathBuf::from));
 
-    let mut sim = Simulation::new(&scenario).context("setting up the scene")?;
+    let mut sim = table_paths
+        .simulation(&scenario)
+        .context("setting up the scene")?;
 
     let stop = signals::StopRequest::install();
     let layout_path = match &mcap_path {

@@ -1,10 +1,11 @@
 //! Plain-file outputs of a run and the `output` section that names them: the final
 //! state as CSV (one row per body, floats printed with Rust's shortest round-trip
 //! formatting so they parse back exactly), the summary as JSON, and the tables sampled
-//! while the run runs — time series, size distribution, snapshots ([`run`]; CSV, or
+//! while the run runs — time series, size distribution, snapshots, collision log ([`run`]; CSV, or
 //! Parquet when the path ends in `.parquet`, [`table`]). Every column and summary key,
 //! with its unit: [`schema`], docs/outputs.md.
 
+pub mod collisions;
 pub mod run;
 pub mod sampling;
 pub mod schema;
@@ -88,6 +89,9 @@ pub struct Output {
     /// Write per-body snapshots here (same as `--snapshots`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub snapshots: Option<String>,
+    /// Write one row per impact here (same as `--collisions`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collisions: Option<String>,
     /// When the series, sizes and snapshots are sampled (default: every T/100; the
     /// `--sample-*` flags override).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -117,6 +121,10 @@ pub struct TableArgs {
     /// Write every body at every sample here (t, then the --final-state columns).
     #[arg(long, value_name = "FILE")]
     pub snapshots: Option<PathBuf>,
+    /// Write one row per impact here (t, ids, masses, radii, normal and tangential speed,
+    /// restitution, heat, outcome).
+    #[arg(long, value_name = "FILE")]
+    pub collisions: Option<PathBuf>,
     /// Sample every SECONDS of simulated time.
     #[arg(long, value_name = "SECONDS", group = "sample")]
     pub sample_every: Option<f64>,
@@ -153,6 +161,7 @@ impl TableArgs {
             series: or(&self.series, &output.series),
             sizes: or(&self.sizes, &output.sizes),
             snapshots: or(&self.snapshots, &output.snapshots),
+            collisions: or(&self.collisions, &output.collisions),
             sampling: flag.or(output.sampling),
         })
     }

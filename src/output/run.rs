@@ -1,6 +1,6 @@
-//! The tables a run writes while it runs — `--series`, `--sizes`, `--snapshots` — on
-//! the schedule of `output.sampling` (or the flags), driven from `agglo run`'s observer
-//! of `Simulation::run_with`.
+//! The tables a run writes while it runs — `--series`, `--sizes`, `--snapshots` on the
+//! schedule of `output.sampling` (or the flags), `--collisions` after every step —
+//! driven from `agglo run`'s observer of `Simulation::run_with`.
 //!
 //! Between samples the observer costs O(1) per step (a look at the clock). At a sample
 //! the bodies are read once through `Simulation::bodies()`, which on the event core
@@ -16,6 +16,7 @@ use crate::resources::LazyState;
 use crate::scenario::Scenario;
 use crate::schedule::Simulation;
 
+use super::collisions::{self, CollisionLog};
 use super::sampling::{SampleSchedule, Sampler};
 use super::series::{SERIES_COLUMNS, series_row};
 use super::sizes::{self, SIZES_COLUMNS, SizeBins};
@@ -45,13 +46,29 @@ pub struct TablePaths {
     pub series: Option<PathBuf>,
     pub sizes: Option<PathBuf>,
     pub snapshots: Option<PathBuf>,
+    pub collisions: Option<PathBuf>,
     pub sampling: Option<SampleSchedule>,
 }
 
 impl TablePaths {
     /// True when no table is asked for.
     pub fn is_empty(&self) -> bool {
-        self.series.is_none() && self.sizes.is_none() && self.snapshots.is_none()
+        self.series.is_none()
+            && self.sizes.is_none()
+            && self.snapshots.is_none()
+            && self.collisions.is_none()
+    }
+
+    /// The scenario's simulation with the built-in physics, collecting what these tables
+    /// read (the impacts, for `collisions`).
+    pub fn simulation(&self, scenario: &Scenario) -> Result<Simulation, crate::error::SimError> {
+        use agglo_systems::AddDefaultPlugins;
+        let mut builder = Simulation::builder(scenario)?;
+        builder.add_default_plugins();
+        if self.collisions.is_some() {
+            collisions::subscribe(&mut builder);
+        }
+        builder.build()
     }
 }
 
@@ -61,6 +78,7 @@ pub struct RunTables {
     series: Option<TableWriter>,
     sizes: Option<(TableWriter, SizeBins)>,
     snapshots: Option<TableWriter>,
+    collisions: Option<CollisionLog>,
     samples: u64,
 }
 
@@ -68,6 +86,8 @@ pub struct RunTables {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TablesReport {
     pub samples: u64,
+    /// Rows of the collision log (impacts).
+    pub collisions: u64,
 }
 
 impl RunTables {
@@ -98,6 +118,21 @@ impl RunTables {
             }
             None => None,
         };
+        if paths.collisions.is_some()
+            && sim
+                .world()
+                .get_resource::<crate::hooks::Messages<crate::hooks::ImpactMessage>>()
+                .is_none()
+        {
+            anyhow::bail!(
+                "--collisions needs the impacts: build the simulation with TablePaths::simulation"
+            );
+        }
+        let collisions = paths
+            .collisions
+            .as_deref()
+            .map(CollisionLog::create)
+            .transpose()?;
         let schedule = paths
             .sampling
             .unwrap_or_else(|| SampleSchedule::default_for(scenario.time.end));
@@ -106,14 +141,18 @@ impl RunTables {
             series,
             sizes,
             snapshots,
+            collisions,
             samples: 0,
         };
         tables.observe(sim)?;
         Ok(Some(tables))
     }
 
-    /// After a step: take a sample if one is due.
+    /// After a step: log its impacts, and take a sample if one is due.
     pub fn observe(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        if let Some(log) = &mut self.collisions {
+            log.observe(sim)?;
+        }
         let c = sim.clock();
         if self.sampler.due(c.step, c.time) {
             self.sample(sim)?;
@@ -132,8 +171,13 @@ impl RunTables {
         {
             table.finish()?;
         }
+        let collisions = self.collisions.as_ref().map_or(0, CollisionLog::rows);
+        if let Some(log) = self.collisions {
+            log.finish()?;
+        }
         Ok(TablesReport {
             samples: self.samples,
+            collisions,
         })
     }
 

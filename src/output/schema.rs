@@ -3,6 +3,7 @@
 //! same text (a test keeps them equal), and another test checks that every key of a
 //! real summary is listed here.
 
+use super::collisions::COLLISION_COLUMNS;
 use super::run::SNAPSHOT_COLUMNS;
 use super::series::SERIES_COLUMNS;
 use super::sizes::SIZES_COLUMNS;
@@ -236,6 +237,11 @@ pub fn tables() -> Vec<(&'static str, &'static str, &'static [Column])> {
             "--snapshots",
             "one row per body per sample, sorted by t then id",
             SNAPSHOT_COLUMNS,
+        ),
+        (
+            "--collisions",
+            "one row per impact, in the order the engine resolved them",
+            COLLISION_COLUMNS,
         ),
         (
             "--final-state",

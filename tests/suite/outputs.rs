@@ -29,6 +29,7 @@ fn paths(dir: &Path, ext: &str, sampling: SampleSchedule) -> TablePaths {
         series: Some(dir.join(format!("series.{ext}"))),
         sizes: Some(dir.join(format!("sizes.{ext}"))),
         snapshots: Some(dir.join(format!("snapshots.{ext}"))),
+        collisions: None,
         sampling: Some(sampling),
     }
 }
@@ -431,4 +432,85 @@ fn run_set_overrides_fields_and_is_checked_like_the_file() {
     );
     let err = String::from_utf8_lossy(&typo.stderr);
     assert!(!typo.status.success() && err.contains("ned"), "{err}");
+}
+
+/// Run `s` with only the collision log, at `path`; the summary.
+fn run_logging_collisions(s: &Scenario, path: &Path) -> Summary {
+    let paths = TablePaths {
+        collisions: Some(path.to_path_buf()),
+        ..Default::default()
+    };
+    let mut sim = paths.simulation(s).unwrap();
+    let mut tables = RunTables::open(&paths, s, &sim).unwrap().unwrap();
+    sim.run_with(|sim| {
+        tables.observe(sim).unwrap();
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    let report = tables.finish(&sim).unwrap();
+    let summary = sim.summary();
+    assert_eq!(report.collisions, summary.counters.impacts);
+    summary
+}
+
+#[test]
+fn collision_log_has_one_row_per_impact_and_its_heat_is_the_ledgers() {
+    let s = merging_cloud();
+    let dir = tempfile::tempdir().unwrap();
+    let summary = run_logging_collisions(&s, &dir.path().join("c.parquet"));
+    run_logging_collisions(&s, &dir.path().join("c.csv"));
+    let log = read_table(&dir.path().join("c.parquet")).unwrap();
+    assert_eq!(log, read_table(&dir.path().join("c.csv")).unwrap());
+    let c = summary.counters;
+    assert_eq!(log.len() as u64, c.impacts);
+    let outcome = log.texts("outcome").unwrap();
+    let count = |o: &str| outcome.iter().filter(|x| *x == o).count() as u64;
+    // No fragmentation in this scene: every row is a bounce or a bond, as counted.
+    assert_eq!(
+        (count("bounce"), count("bond"), count("fragment")),
+        (c.bounces, c.bonds, 0)
+    );
+    let heat: f64 = f(&log, "heat").iter().sum();
+    let e = summary.energy;
+    let booked = e.impact_dissipation + e.reaction_heat + e.double_counted_heat;
+    // The same terms summed in another grouping: rounding only.
+    assert!(
+        (heat - booked).abs() <= 1e-12 * booked,
+        "{heat} vs {booked}"
+    );
+    let (a, b, t) = (
+        log.ints("id_a").unwrap(),
+        log.ints("id_b").unwrap(),
+        f(&log, "t"),
+    );
+    assert!(a.iter().zip(&b).all(|(a, b)| a < b), "id_a < id_b");
+    assert!(t.windows(2).all(|w| w[0] <= w[1]), "in time order");
+    assert!(f(&log, "normal_speed").iter().all(|&v| v > 0.0));
+    let e_bond: Vec<f64> = f(&log, "restitution");
+    for (k, o) in outcome.iter().enumerate() {
+        assert_eq!(o == "bond", e_bond[k] == 0.0, "row {k}: a bond has e = 0");
+    }
+}
+
+#[test]
+fn collision_log_marks_impacts_whose_bodies_fragmented() {
+    let s =
+        Scenario::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/quick_demo.json"))
+            .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let summary = run_logging_collisions(&s, &dir.path().join("c.csv"));
+    let log = read_table(&dir.path().join("c.csv")).unwrap();
+    let c = summary.counters;
+    assert!(c.fragmentations > 0, "quick_demo fragments");
+    let outcome = log.texts("outcome").unwrap();
+    let fragments = outcome.iter().filter(|o| *o == "fragment").count() as u64;
+    // Each fragmentation follows an impact of its step; an impact can break both bodies.
+    assert!(
+        fragments > 0 && fragments <= c.fragmentations,
+        "{fragments} vs {c:?}"
+    );
+    let bounces = outcome.iter().filter(|o| *o == "bounce").count() as u64;
+    let bonds = outcome.iter().filter(|o| *o == "bond").count() as u64;
+    assert_eq!(bounces + bonds + fragments, c.impacts);
+    assert!(bounces <= c.bounces && bonds <= c.bonds);
 }
