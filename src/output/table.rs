@@ -1,15 +1,15 @@
 //! Tables written row by row as CSV, or as Parquet when the path ends in `.parquet`,
 //! and read back by [`read_table`] (the tests, and `cloud.from_file`).
 //!
-//! CSV: a header line, then one line per row; floats in Rust's shortest round-trip
-//! form (`{:?}`), so they parse back to the same bits; counts as integers; no quoting
+//! CSV: a header line, then one line per row; floats in shortest round-trip form
+//! (`ryu`), so they parse back to the same bits; counts as integers; no quoting
 //! (no value holds a comma). Parquet: one required column per field (DOUBLE, INT64 or
 //! UTF8 BYTE_ARRAY), zstd-compressed, through the crate's low-level column writer (no
 //! Arrow). Rows are buffered per column and written as a row group every
 //! [`ROW_GROUP_ROWS`] rows, so memory stays bounded however long the run.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::io::{BufWriter, Write};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -174,14 +174,20 @@ impl TableWriter {
         self.rows += 1;
         match &mut self.sink {
             Sink::Csv(out) => {
+                let mut floats = ryu::Buffer::new();
+                let mut ints = itoa::Buffer::new();
                 for (k, cell) in cells.iter().enumerate() {
                     if k > 0 {
                         out.write_all(b",")?;
                     }
                     match cell {
-                        // Shortest representation that parses back to the same f64.
-                        Cell::F(x) => write!(out, "{x:?}")?,
-                        Cell::I(n) => write!(out, "{n}")?,
+                        // Shortest representation that parses back to the same f64
+                        // (non-finite values as Rust and pandas read them: NaN, inf).
+                        Cell::F(x) if x.is_finite() => {
+                            out.write_all(floats.format_finite(*x).as_bytes())?
+                        }
+                        Cell::F(x) => write!(out, "{x}")?,
+                        Cell::I(n) => out.write_all(ints.format(*n).as_bytes())?,
                         Cell::S(s) => out.write_all(s.as_bytes())?,
                     }
                 }
@@ -337,48 +343,77 @@ pub fn read_table(path: &Path) -> anyhow::Result<Table> {
 }
 
 fn read_csv(path: &Path) -> anyhow::Result<Table> {
-    let file = File::open(path)?;
-    let mut lines = BufReader::new(file).lines();
-    let header = lines
-        .next()
-        .context("the file is empty (no header line)")??;
+    let text = std::fs::read_to_string(path)?;
+    let mut lines = text.lines();
+    let header = lines.next().context("the file is empty (no header line)")?;
     let names: Vec<String> = header
-        .trim_end_matches('\r')
         .split(',')
         .map(|s| s.trim().trim_matches('"').to_string())
         .collect();
-    let mut raw: Vec<Vec<String>> = vec![Vec::new(); names.len()];
+    // Parsed as they come, without a String per field (10⁶ bodies × 13 columns): a
+    // column stays integer while every value is, turns float at the first that is not,
+    // and text at the first that is no number (then it is read again as text).
+    let mut columns: Vec<Values> = names.iter().map(|_| Values::I(Vec::new())).collect();
+    let mut text_columns = vec![false; names.len()];
+    let mut rows = 0usize;
     for (k, line) in lines.enumerate() {
-        let line = line?;
-        let line = line.trim_end_matches('\r');
         if line.trim().is_empty() {
             continue;
         }
-        let fields: Vec<&str> = line.split(',').collect();
-        if fields.len() != names.len() {
+        let mut fields = 0;
+        for (c, field) in line.split(',').enumerate() {
+            fields += 1;
+            let Some(column) = columns.get_mut(c) else {
+                continue;
+            };
+            if text_columns[c] {
+                continue;
+            }
+            let field = field.trim();
+            match column {
+                Values::I(v) => match field.parse::<i64>() {
+                    Ok(n) => v.push(n),
+                    Err(_) => match field.parse::<f64>() {
+                        Ok(x) => {
+                            let mut f: Vec<f64> = v.iter().map(|&n| n as f64).collect();
+                            f.push(x);
+                            *column = Values::F(f);
+                        }
+                        Err(_) => text_columns[c] = true,
+                    },
+                },
+                Values::F(v) => match field.parse::<f64>() {
+                    Ok(x) => v.push(x),
+                    Err(_) => text_columns[c] = true,
+                },
+                Values::S(_) => {}
+            }
+        }
+        if fields != names.len() {
             bail!(
-                "line {}: {} fields, but the header names {}",
+                "line {}: {fields} fields, but the header names {}",
                 k + 2,
-                fields.len(),
                 names.len()
             );
         }
-        for (column, field) in raw.iter_mut().zip(fields) {
-            column.push(field.trim().to_string());
+        rows += 1;
+    }
+    for (c, is_text) in text_columns.iter().enumerate() {
+        if *is_text {
+            let values = text
+                .lines()
+                .skip(1)
+                .filter(|l| !l.trim().is_empty())
+                .map(|l| l.split(',').nth(c).unwrap_or("").trim().to_string())
+                .collect();
+            columns[c] = Values::S(values);
         }
     }
-    let columns = raw
-        .into_iter()
-        .map(|values| {
-            if let Ok(v) = values.iter().map(|s| s.parse::<i64>()).collect() {
-                Values::I(v)
-            } else if let Ok(v) = values.iter().map(|s| s.parse::<f64>()).collect() {
-                Values::F(v)
-            } else {
-                Values::S(values)
-            }
-        })
-        .collect();
+    debug_assert!(columns.iter().all(|c| match c {
+        Values::F(v) => v.len() == rows,
+        Values::I(v) => v.len() == rows,
+        Values::S(v) => v.len() == rows,
+    }));
     Ok(Table { names, columns })
 }
 
