@@ -299,7 +299,9 @@ pub fn placed_bodies(
         }
         let implied = primary.mass * p.primaries;
         let mass = p.mass.unwrap_or(implied);
-        if !((mass - implied).abs() <= CONSISTENCY_TOLERANCE * implied) {
+        // Written to also refuse NaN.
+        let mass_agrees = (mass - implied).abs() <= CONSISTENCY_TOLERANCE * implied;
+        if !mass_agrees {
             return Err(invalid(
                 i,
                 "mass",
@@ -311,7 +313,9 @@ pub fn placed_bodies(
         }
         let implied_radius = material.radius_of_mass(mass);
         let radius = p.radius.unwrap_or(implied_radius);
-        if !((radius - implied_radius).abs() <= CONSISTENCY_TOLERANCE * implied_radius) {
+        let radius_agrees =
+            (radius - implied_radius).abs() <= CONSISTENCY_TOLERANCE * implied_radius;
+        if !radius_agrees {
             return Err(invalid(
                 i,
                 "radius",

@@ -51,7 +51,7 @@ pub fn load_bodies(path: &Path) -> anyhow::Result<Vec<PlacedBody>> {
             .transpose()
             .with_context(|| format!("{}", path.display()))
     };
-    let [x, y, z] = ["x", "y", "z"].map(|c| floats(c));
+    let [x, y, z] = ["x", "y", "z"].map(&floats);
     let (x, y, z) = match (x?, y?, z?) {
         (Some(x), Some(y), Some(z)) => (x, y, z),
         _ => bail!("{}: columns x, y and z are required", path.display()),

@@ -553,7 +553,7 @@ fn body_is_plausible(b: &PlacedBody) -> bool {
     let positive = |x: Option<f64>| x.is_none_or(|x| x.is_finite() && x > 0.0);
     b.position.iter().all(|x| x.is_finite())
         && b.velocity
-            .is_none_or(|v| v.iter().all(|x| x.is_finite()) && !(norm(v) > MAX_SPEED))
+            .is_none_or(|v| v.iter().all(|x| x.is_finite()) && norm(v) <= MAX_SPEED)
         && b.primaries >= 1.0
         && b.primaries.is_finite()
         && positive(b.temperature)
