@@ -307,8 +307,8 @@ Carried: every body's id, position, velocity, mass, radius, temperature and prim
 so new ids continue past the largest. Not carried: the clock (the continued run starts
 at t = 0 and runs for its own `time.end`), the random generator's state (a continued
 run draws from a fresh generator of its seed: fragmentation's draws differ), the
-event core's calendar (rebuilt from the bodies: the same predictions, up to the
-rounding of times measured from a new origin), the counters, the energy ledger and the
+event core's calendar (rebuilt from the loaded bodies, with event times measured from
+the new t = 0, which can differ from the whole run's in the last bits), the counters, the energy ledger and the
 invariants' reference totals (they start again from the loaded state). On the stepped
 core with a fixed Δt, a run without random draws after set-up continued from its own
 final state ends bit for bit where the uninterrupted run ends when Δt and the split
