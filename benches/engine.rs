@@ -1,5 +1,6 @@
 //! Engine speed: the P04 best case end to end (event core), a dilute cloud's
-//! throughput at N = 100 000, and the pair solve alone (closed form, seeded, plain).
+//! throughput at N = 100 000, the pair solve alone (closed form, seeded, plain), and the
+//! set-up of 10⁶ explicit bodies (checks over the neighbour grid; from a file too).
 //!
 //! Run: `cargo bench --bench engine`. Figures are reported in the issue notes and README.
 
@@ -50,7 +51,7 @@ fn dilute(c: &mut Criterion) {
     scenario.cloud.size_ratio = Some((0.05 * 6.0 / std::f64::consts::PI).cbrt());
     scenario.domain.half_width = 0.05;
     scenario.cloud.v_mean = [1.0, 2.0, 3.0];
-    scenario.cloud.v_rel = [0.0, 0.0, 0.0];
+    scenario.cloud.v_rel = Some([0.0, 0.0, 0.0]);
     scenario.material.gamma = None;
     scenario.physics.cooling = CoolingMethod::Off;
     scenario.diagnostics.invariants = false;
@@ -130,5 +131,79 @@ fn pair_solve(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, paper2004, dilute, pair_solve);
+/// 10⁶ explicit bodies on a jittered 100³ lattice (volume fraction 0.11), each with its
+/// velocity: the scenario's checks (box, ids, masses, overlaps) run once when the
+/// scenario is parsed and again in `Simulation::new`, as in `agglo run`.
+fn explicit_setup(c: &mut Criterion) {
+    let n_side = 100usize;
+    let half = 0.05;
+    let spacing = 2.0 * half / n_side as f64;
+    let radius = 0.3 * spacing;
+    let mut state: u64 = 1;
+    let mut jitter = || {
+        // A small LCG: reproducible jitter of ±0.1 spacing without another dependency.
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.2 * spacing
+    };
+    let mut bodies = Vec::with_capacity(n_side.pow(3));
+    for i in 0..n_side {
+        for j in 0..n_side {
+            for k in 0..n_side {
+                let at = |n: usize| -half + (n as f64 + 0.5) * spacing;
+                let position = [at(i) + jitter(), at(j) + jitter(), at(k) + jitter()];
+                bodies.push(agglo::scenario::PlacedBody {
+                    position,
+                    velocity: Some([jitter() * 1e3, jitter() * 1e3, jitter() * 1e3]),
+                    primaries: 1.0,
+                    ..Default::default()
+                });
+            }
+        }
+    }
+    let mut scenario = load("quick_demo.json");
+    scenario.domain.half_width = half;
+    scenario.cloud.count = bodies.len();
+    scenario.cloud.size_ratio = None;
+    scenario.cloud.radius = Some(radius);
+    scenario.cloud.v_mean = [0.0; 3];
+    scenario.cloud.v_rel = None;
+    scenario.cloud.bodies = bodies;
+    scenario.validate().expect("the lattice is valid");
+    // The stepped core: the set-up proper (checks, bodies spawned, plugins built). The
+    // event core adds its initial calendar, the events plugin's business, not measured here.
+    scenario.time.core = agglo::scenario::Core::Stepped;
+    let mut group = c.benchmark_group("explicit_bodies");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(20));
+    group.bench_function(
+        "N=1e6 Scenario::validate (what agglo validate checks)",
+        |b| b.iter(|| scenario.validate().unwrap()),
+    );
+    group.bench_function(
+        "N=1e6 Simulation::new, stepped core (validates again)",
+        |b| b.iter(|| Simulation::new(&scenario).unwrap().body_count()),
+    );
+    // The same bodies as a --final-state CSV, loaded through cloud.from_file.
+    let dir = std::env::temp_dir().join(format!("agglo-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("bodies.csv");
+    let sim = Simulation::new(&scenario).unwrap();
+    agglo::output::write_final_state(&csv, &sim.bodies()).unwrap();
+    drop(sim);
+    let mut from_file = scenario.clone();
+    from_file.cloud.bodies.clear();
+    from_file.cloud.count = 0;
+    from_file.cloud.from_file = Some(csv.display().to_string());
+    let text = from_file.to_json();
+    group.bench_function("N=1e6 from_file CSV: parse + read + validate", |b| {
+        b.iter(|| Scenario::from_json(&text).unwrap().cloud.count)
+    });
+    group.finish();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+criterion_group!(benches, paper2004, dilute, pair_solve, explicit_setup);
 criterion_main!(benches);

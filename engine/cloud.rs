@@ -1,16 +1,22 @@
 //! The cloud generator (docs/model.md §2): N equal primary spheres placed at random
 //! without overlap in the periodic cube (random sequential addition over a cell
-//! grid), with velocities v_i = v̄ + v_rel ∘ λ_i, all from the scene's one RNG.
+//! grid), with velocities v_i = v̄ + v_rel ∘ λ_i (or Maxwellian, at a given granular
+//! temperature), all from the scene's one RNG; or explicit bodies (`cloud.bodies`, or
+//! loaded from a table by the driver: `cloud.from_file`), checked by [`placed_bodies`]
+//! — in the box, distinct ids, mass and radius consistent, no two overlapping (over
+//! the neighbour grid: O(N)) — the one check both `agglo validate` and a run make.
 //!
 //! Draw order (part of the reproducibility contract): positions for particles
 //! 0, 1, … (each retried until it fits), then velocities for 0, 1, … with λ drawn
-//! x, y, z.
+//! x, y, z (Maxwellian: one Box–Muller normal per component, from two uniforms).
+//! Explicit bodies draw only the velocities they lack, in list order.
 
 use glam::DVec3;
 use rand::{Rng, RngExt};
 
 use crate::components::BodyState;
 use crate::error::SimError;
+use crate::laws::grid::NeighbourGrid;
 use crate::scene::{BoxGeometry, Material};
 
 use schemars::JsonSchema;
@@ -19,44 +25,82 @@ use serde::{Deserialize, Serialize};
 /// Attempts allowed per particle on average before placement is declared impossible.
 const ATTEMPTS_PER_PARTICLE: u64 = 2_000;
 
-/// The initial cloud of N equal primary spheres (docs/model.md §2).
+/// The initial cloud of N equal primary spheres (docs/model.md §2), or explicit bodies.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Cloud {
-    /// Number of primary particles N.
+    /// Number of primary particles N; with explicit bodies (`bodies`, `from_file`) it may
+    /// be left out (0), and is then the number of bodies given.
+    #[serde(default)]
     pub count: usize,
     /// Primary size: give exactly one of `radius` [m] or `size_ratio`
-    /// s = d / (V/N)^(1/3) (volume fraction (π/6) s³).
+    /// s = d / (V/N)^(1/3) (volume fraction (π/6) s³). With `from_file`, give the
+    /// `radius` b0 of the run that wrote the file (a size ratio would be taken of the
+    /// file's body count).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radius: Option<f64>,
     /// Size ratio s = 2b / (V/N)^(1/3), 0 < s < 0.9 (P04's L and P02's s).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub size_ratio: Option<f64>,
-    /// Mean velocity v̄ [m/s].
+    /// Mean velocity v̄ [m/s] of the velocities drawn.
     #[serde(default)]
     pub v_mean: [f64; 3],
-    /// Relative velocity amplitudes v_rel [m/s] per component.
-    pub v_rel: [f64; 3],
-    /// Distribution of λ_i per component: `symmetric` = U[−1, 1] (P04), `positive` = U[0, 1] (P02).
+    /// Relative velocity amplitudes v_rel [m/s] per component (`symmetric`, `positive`):
+    /// required when velocities are drawn that way, i.e. unless every body is given
+    /// with its velocity.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub v_rel: Option<[f64; 3]>,
+    /// Distribution of the velocities drawn: `symmetric` (λ ~ U[−1, 1], P04),
+    /// `positive` (λ ~ U[0, 1], P02) or `maxwell` (Gaussian about v̄ at
+    /// `granular_temperature`).
     #[serde(default)]
     pub velocity_distribution: VelocityDistribution,
-    /// Explicit bodies instead of a random cloud (for set-ups such as a head-on pair):
-    /// when given, its length must equal `count`, and `v_mean`/`v_rel` are ignored.
+    /// Granular temperature T_g [m²/s²] of `maxwell`: each velocity component is drawn
+    /// from a normal distribution of mean v̄ and variance T_g (so ⟨|v − v̄|²⟩ = 3 T_g).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub granular_temperature: Option<f64>,
+    /// Shift every velocity by the same vector so that the total momentum Σ m v is zero
+    /// (to rounding), after drawing; for generated and explicit bodies alike. Needs v̄ = 0.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub remove_drift: bool,
+    /// Explicit bodies instead of a random cloud (for set-ups such as a head-on pair).
+    /// Bodies without a velocity get one drawn from `velocity_distribution`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub bodies: Vec<PlacedBody>,
+    /// Read the explicit bodies from this table (CSV, or Parquet if it ends in
+    /// `.parquet`) with the columns of `--final-state` / `--snapshots` (x, y, z required;
+    /// vx, vy, vz, id, mass, radius, temperature, primaries optional; hardness follows
+    /// θ; a `t` column: the rows of the last t), so a run continues from another's end
+    /// state. Loaded when the scenario is (a path relative to the working directory);
+    /// the scenario then holds the bodies, and this field is cleared.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from_file: Option<String>,
 }
 
 /// One explicitly placed body.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PlacedBody {
     /// Centre [m], inside [−D, D]³.
     pub position: [f64; 3],
-    /// Velocity [m/s].
-    pub velocity: [f64; 3],
+    /// Velocity [m/s]; drawn from the cloud's velocity distribution when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<[f64; 3]>,
     /// Primary grains in the body (mass = primaries · m_primary), ≥ 1.
     #[serde(default = "crate::scene::one")]
     pub primaries: f64,
+    /// Stable id (default: the body's index); ids must be distinct.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub id: Option<u64>,
+    /// Temperature θ [K] (default θ0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<f64>,
+    /// Mass [kg] (default primaries · m_primary; if given, it must agree to 1e-9).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass: Option<f64>,
+    /// Radius [m] (default (3m / 4πρ)^(1/3); if given, it must agree to 1e-9).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
@@ -67,6 +111,8 @@ pub enum VelocityDistribution {
     Symmetric,
     /// λ ~ U[0, 1] per component (P02).
     Positive,
+    /// Each component ~ N(v̄_k, T_g), T_g = `granular_temperature` [m²/s²].
+    Maxwell,
 }
 
 /// One primary grain of the scene: derived once from the `cloud`, `box` and `material`
@@ -118,7 +164,20 @@ impl Cloud {
     }
 }
 
-/// Generate the initial bodies, ids 0..N.
+/// Relative tolerance of a given mass or radius against the one implied by the
+/// primaries (rounding of sums over merges is ~1e-16; a wrong b0 or ρ is off by far more).
+pub const CONSISTENCY_TOLERANCE: f64 = 1e-9;
+
+impl Cloud {
+    /// True when velocities are drawn from `v_rel` (uniform distributions) for some body:
+    /// a generated cloud, or explicit bodies some of which lack a velocity.
+    pub fn draws_uniform_velocities(&self) -> bool {
+        self.velocity_distribution != VelocityDistribution::Maxwell
+            && (self.bodies.is_empty() || self.bodies.iter().any(|b| b.velocity.is_none()))
+    }
+}
+
+/// Generate the initial bodies, ids 0..N (explicit bodies: their ids).
 pub fn generate_cloud(
     cloud: &Cloud,
     domain: &BoxGeometry,
@@ -128,88 +187,198 @@ pub fn generate_cloud(
 ) -> Result<Vec<BodyState>, SimError> {
     let count = cloud.count;
     let b = primary.radius;
-    if !cloud.bodies.is_empty() {
-        return placed_bodies(cloud, domain, material, primary);
-    }
-    let half = domain.half_width;
-    let positions =
-        place_spheres(count, b, half, rng).map_err(|(placed, attempts)| SimError::Placement {
-            placed,
-            requested: count,
-            radius: b,
-            volume_fraction: cloud.volume_fraction(domain),
-            attempts,
+    let mut bodies = if !cloud.bodies.is_empty() {
+        let mut bodies = placed_bodies(cloud, domain, material, primary)?;
+        for (body, placed) in bodies.iter_mut().zip(&cloud.bodies) {
+            if placed.velocity.is_none() {
+                body.velocity = draw_velocity(cloud, rng);
+            }
+        }
+        bodies
+    } else {
+        let half = domain.half_width;
+        let positions = place_spheres(count, b, half, rng).map_err(|(placed, attempts)| {
+            SimError::Placement {
+                placed,
+                requested: count,
+                radius: b,
+                volume_fraction: cloud.volume_fraction(domain),
+                attempts,
+            }
         })?;
-    let c = cloud;
-    let lambda = |rng: &mut dyn FnMut() -> f64| DVec3::new(rng(), rng(), rng());
-    let theta = material.theta0;
-    let bodies = positions
-        .into_iter()
-        .enumerate()
-        .map(|(i, position)| {
-            let mut draw = || match c.velocity_distribution {
-                VelocityDistribution::Symmetric => rng.random_range(-1.0..=1.0),
-                VelocityDistribution::Positive => rng.random_range(0.0..=1.0),
-            };
-            let l = lambda(&mut draw);
-            BodyState {
+        let theta = material.theta0;
+        let hardness = material.hardness(theta);
+        // Positions first, then velocities (the draw order above).
+        let velocities: Vec<DVec3> = (0..count).map(|_| draw_velocity(cloud, rng)).collect();
+        positions
+            .into_iter()
+            .zip(velocities)
+            .enumerate()
+            .map(|(i, (position, velocity))| BodyState {
                 id: i as u64,
                 position,
-                velocity: DVec3::from_array(c.v_mean) + DVec3::from_array(c.v_rel) * l,
+                velocity,
                 mass: primary.mass,
                 radius: b,
                 temperature: theta,
-                hardness: material.hardness(theta),
+                hardness,
                 primaries: 1.0,
-            }
-        })
-        .collect();
+            })
+            .collect()
+    };
+    if cloud.remove_drift {
+        remove_drift(&mut bodies);
+    }
     Ok(bodies)
 }
 
-/// The scenario's explicit bodies; fails if two of them overlap.
-fn placed_bodies(
+/// One velocity from the cloud's distribution: v̄ + v_rel ∘ λ, or Maxwellian.
+fn draw_velocity(c: &Cloud, rng: &mut impl Rng) -> DVec3 {
+    let mean = DVec3::from_array(c.v_mean);
+    match c.velocity_distribution {
+        VelocityDistribution::Maxwell => {
+            let sigma = c.granular_temperature.unwrap_or(0.0).sqrt();
+            let mut normal = || {
+                // Box–Muller: u1 in (0, 1] keeps the logarithm finite.
+                let u1: f64 = 1.0 - rng.random_range(0.0..1.0);
+                let u2: f64 = rng.random_range(0.0..1.0);
+                (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+            };
+            let (x, y, z) = (normal(), normal(), normal());
+            mean + sigma * DVec3::new(x, y, z)
+        }
+        distribution => {
+            let mut draw = || match distribution {
+                VelocityDistribution::Positive => rng.random_range(0.0..=1.0),
+                _ => rng.random_range(-1.0..=1.0),
+            };
+            let (x, y, z) = (draw(), draw(), draw());
+            mean + DVec3::from_array(c.v_rel.unwrap_or_default()) * DVec3::new(x, y, z)
+        }
+    }
+}
+
+/// Subtract the centre-of-mass velocity Σ m v / Σ m from every body (summed in id order).
+pub fn remove_drift(bodies: &mut [BodyState]) {
+    let mass: f64 = bodies.iter().map(|b| b.mass).sum();
+    if mass <= 0.0 {
+        return;
+    }
+    let v_cm = bodies.iter().map(|b| b.mass * b.velocity).sum::<DVec3>() / mass;
+    for b in bodies {
+        b.velocity -= v_cm;
+    }
+}
+
+/// The scenario's explicit bodies as they start (velocities not yet drawn are zero),
+/// after every check a run makes on them: in the box [−D, D]³, distinct ids, a given
+/// mass or radius consistent with the primaries, and no two overlapping (over the
+/// periodic neighbour grid: O(N) for any radii). `agglo validate` and the generator both
+/// call this, so they agree.
+pub fn placed_bodies(
     cloud: &Cloud,
     geometry: &BoxGeometry,
     material: &Material,
     primary: &PrimaryGrain,
 ) -> Result<Vec<BodyState>, SimError> {
-    let theta = material.theta0;
-    let bodies: Vec<BodyState> = cloud
-        .bodies
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let mass = primary.mass * p.primaries;
-            BodyState {
-                id: i as u64,
-                position: geometry.wrap(DVec3::from_array(p.position)),
-                velocity: DVec3::from_array(p.velocity),
-                mass,
-                radius: material.radius_of_mass(mass),
-                temperature: theta,
-                hardness: material.hardness(theta),
-                primaries: p.primaries,
-            }
-        })
-        .collect();
-    // Set-up only (explicit lists are small): a direct overlap check.
-    for i in 0..bodies.len() {
-        for j in i + 1..bodies.len() {
-            let d = geometry
-                .min_image(bodies[j].position - bodies[i].position)
-                .length();
-            if d < bodies[i].radius + bodies[j].radius {
-                return Err(SimError::Overlap {
+    let d = geometry.half_width;
+    let invalid = |i: usize, field: &str, message: String| SimError::InvalidBody {
+        path: format!("cloud.bodies.{i}.{field}"),
+        message,
+    };
+    let mut bodies = Vec::with_capacity(cloud.bodies.len());
+    for (i, p) in cloud.bodies.iter().enumerate() {
+        for (k, &x) in p.position.iter().enumerate() {
+            if !(x >= -d && x <= d) {
+                return Err(invalid(
                     i,
-                    j,
-                    distance: d,
-                    contact: bodies[i].radius + bodies[j].radius,
-                });
+                    &format!("position.{k}"),
+                    format!("allowed −D ≤ x ≤ D = {d:e} (got {x})"),
+                ));
             }
         }
+        let implied = primary.mass * p.primaries;
+        let mass = p.mass.unwrap_or(implied);
+        // Written to also refuse NaN.
+        let mass_agrees = (mass - implied).abs() <= CONSISTENCY_TOLERANCE * implied;
+        if !mass_agrees {
+            return Err(invalid(
+                i,
+                "mass",
+                format!(
+                    "{mass:e} kg, but {} primaries of {:e} kg make {implied:e} kg: is cloud.radius                      (b0) or material.rho that of the run that wrote the body?",
+                    p.primaries, primary.mass
+                ),
+            ));
+        }
+        let implied_radius = material.radius_of_mass(mass);
+        let radius = p.radius.unwrap_or(implied_radius);
+        let radius_agrees =
+            (radius - implied_radius).abs() <= CONSISTENCY_TOLERANCE * implied_radius;
+        if !radius_agrees {
+            return Err(invalid(
+                i,
+                "radius",
+                format!(
+                    "{radius:e} m, but a sphere of {mass:e} kg at ρ = {} kg/m³ has radius {implied_radius:e} m",
+                    material.rho
+                ),
+            ));
+        }
+        let theta = p.temperature.unwrap_or(material.theta0);
+        bodies.push(BodyState {
+            id: p.id.unwrap_or(i as u64),
+            position: geometry.wrap(DVec3::from_array(p.position)),
+            velocity: DVec3::from_array(p.velocity.unwrap_or_default()),
+            mass,
+            radius,
+            temperature: theta,
+            hardness: material.hardness(theta),
+            primaries: p.primaries,
+        });
+    }
+    let mut ids: Vec<(u64, usize)> = bodies.iter().enumerate().map(|(i, b)| (b.id, i)).collect();
+    ids.sort_unstable();
+    if let Some(w) = ids.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(invalid(
+            w[1].1,
+            "id",
+            format!(
+                "id {} is also cloud.bodies.{}'s; ids must be distinct",
+                w[1].0, w[0].1
+            ),
+        ));
+    }
+    if let Some((i, j, distance, contact)) = first_overlap(&bodies, geometry) {
+        return Err(SimError::Overlap {
+            i,
+            j,
+            distance,
+            contact,
+        });
     }
     Ok(bodies)
+}
+
+/// The overlapping pair (i < j, the smallest in that order) with its centre distance
+/// and radii sum [m], if any: over the neighbour grid, O(N).
+pub fn first_overlap(
+    bodies: &[BodyState],
+    geometry: &BoxGeometry,
+) -> Option<(usize, usize, f64, f64)> {
+    let positions: Vec<DVec3> = bodies.iter().map(|b| b.position).collect();
+    let radii: Vec<f64> = bodies.iter().map(|b| b.radius).collect();
+    let mut pairs = Vec::new();
+    NeighbourGrid::default().pairs_within(&positions, &radii, geometry.half_width, 0.0, &mut pairs);
+    pairs
+        .iter()
+        .filter(|p| p.gap < 0.0)
+        .map(|p| {
+            let (i, j) = (p.i.min(p.j) as usize, p.i.max(p.j) as usize);
+            let contact = radii[i] + radii[j];
+            (i, j, p.gap + contact, contact)
+        })
+        .min_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)))
 }
 
 /// Random sequential addition of `count` spheres of radius `b` in [−half, half)³,

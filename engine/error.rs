@@ -64,6 +64,9 @@ pub enum SimError {
         distance: f64,
         contact: f64,
     },
+    /// An explicit body that cannot start as given.
+    #[error("{path}: {message}")]
+    InvalidBody { path: String, message: String },
     #[error(
         "run stopped at step {step} (t = {time:e} s of {end:e} s): reached time.max_steps = {max_steps}"
     )]

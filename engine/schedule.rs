@@ -214,7 +214,8 @@ impl SimBuilder {
             seed: scene.seed(),
             initial_bodies: cloud.len(),
         };
-        let next_id = cloud.len() as u64;
+        // Past every id given (explicit bodies may bring their own, e.g. a run's end state).
+        let next_id = cloud.iter().map(|b| b.id + 1).max().unwrap_or(0);
         let initial = totals(
             cloud.iter().map(|b| (b.mass, b.velocity, b.temperature)),
             material.C,

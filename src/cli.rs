@@ -6,10 +6,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 
 mod clamp_watch;
 mod inverse;
+mod progress;
 mod ranks;
 mod signals;
 
@@ -37,8 +37,13 @@ pub enum Command {
         /// Scenario file (JSON).
         scenario: PathBuf,
     },
-    /// Print the JSON Schema of the scenario format.
-    Schema,
+    /// Print the JSON Schema of the scenario format (or, with --outputs, every output's
+    /// columns and summary keys with their units).
+    Schema {
+        /// Print the outputs' columns and keys (docs/outputs.md) instead.
+        #[arg(long)]
+        outputs: bool,
+    },
     /// Summarise an MCAP recording: channels, counts, duration, scenario, final statistics.
     Inspect {
         /// Recording (MCAP) written by `agglo run --out`.
@@ -126,6 +131,13 @@ pub struct RunArgs {
     /// Write one CSV row per body at the end here.
     #[arg(long)]
     pub final_state: Option<PathBuf>,
+    /// Time series, size distribution and snapshots, and when they are sampled.
+    #[command(flatten)]
+    pub tables: agglo::output::TableArgs,
+    /// Override a scenario field: PATH=VALUE, VALUE parsed as JSON (else a string), e.g.
+    /// `--set time.end=0.01 --set cloud.size_ratio=0.3` (repeatable; checked as the file is).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    pub set: Vec<String>,
     /// No progress bar and no end-of-run report (warnings still go to stderr).
     #[arg(long, short)]
     pub quiet: bool,
@@ -152,7 +164,11 @@ fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow:
         Command::Run(args) => run(args),
         Command::Validate { scenario } => validate(&scenario),
         Command::Study(study) => run_study(study, cluster),
-        Command::Schema => {
+        Command::Schema { outputs: true } => {
+            print!("{}", agglo::output::schema::outputs_markdown());
+            Ok(())
+        }
+        Command::Schema { outputs: false } => {
             println!(
                 "{}",
                 serde_json::to_string_pretty(&Scenario::json_schema())?
@@ -266,9 +282,13 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         (None, None) => anyhow::bail!("give a scenario file or --from RECORDING"),
     };
+    if !args.set.is_empty() {
+        scenario = scenario.with_settings(&args.set)?;
+    }
     if let Some(seed) = args.seed {
         scenario.seed = seed;
     }
+    let table_paths = args.tables.paths(&scenario.output)?;
     let summary_path = args
         .summary
         .clone()
@@ -283,7 +303,9 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         .clone()
         .or_else(|| scenario.output.mcap.clone().map(PathBuf::from));
 
-    let mut sim = Simulation::new(&scenario).context("setting up the scene")?;
+    let mut sim = table_paths
+        .simulation(&scenario)
+        .context("setting up the scene")?;
 
     let stop = signals::StopRequest::install();
     let layout_path = match &mcap_path {
@@ -298,29 +320,15 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
+    let mut tables = agglo::output::RunTables::open(&table_paths, &scenario, &sim)?;
     let mut clamp_watch = clamping_floor(&scenario).map(|dt_min| (ClampWatch::new(0, 0), dt_min));
     let mut record_error: Option<anyhow::Error> = None;
     let show_progress = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
-    let bar = if show_progress {
-        let bar = ProgressBar::new(1000);
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg} (eta {eta})",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        Some(bar)
-    } else {
-        None
-    };
-    let end = scenario.time.end;
+    let mut bar = show_progress
+        .then(|| progress::Progress::new(scenario.time.end, scenario.uses_event_core()));
     let outcome = sim.run_with(|s| {
-        if let Some(bar) = &bar {
-            let c = s.clock();
-            if c.step % 64 == 0 {
-                bar.set_position((1000.0 * c.time / end) as u64);
-                bar.set_message(format!("step {} t = {:.3e} s", c.step, c.time));
-            }
+        if let Some(bar) = bar.as_mut() {
+            bar.update(s);
         }
         if let Some((watch, dt_min)) = clamp_watch.as_mut() {
             let c = s.clock();
@@ -343,6 +351,12 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
             record_error = Some(e);
             return ControlFlow::Break(());
         }
+        if let Some(t) = tables.as_mut()
+            && let Err(e) = t.observe(s)
+        {
+            record_error = Some(e);
+            return ControlFlow::Break(());
+        }
         if stop.requested() {
             ControlFlow::Break(())
         } else {
@@ -350,7 +364,7 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         }
     });
     if let Some(bar) = &bar {
-        bar.finish_and_clear();
+        bar.finish();
     }
 
     // Finalise the recording whatever happened (summary section written), then the rest.
@@ -376,6 +390,9 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         }
     }
     // Write what we have even when the run failed: nothing is lost.
+    if let Some(t) = tables.take() {
+        t.finish(&sim)?;
+    }
     let bodies = sim.bodies();
     let summary = Summary::new(&sim, &bodies);
     if let Some(path) = &final_path {

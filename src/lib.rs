@@ -25,6 +25,7 @@
 //! All quantities are SI and `f64`.
 
 pub mod charts;
+pub mod cloud_file;
 pub mod farm;
 pub mod inverse;
 pub mod output;

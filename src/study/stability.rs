@@ -455,7 +455,10 @@ pub const ELASTIC_CROSSING_TIMES: f64 = 30.0;
 
 /// Crossing time b0 / |v_rel| of a scene [s].
 pub fn crossing_time(scenario: &Scenario) -> f64 {
-    scenario.primary_radius() / DVec3::from_array(scenario.cloud.v_rel).length().max(1e-300)
+    scenario.primary_radius()
+        / DVec3::from_array(scenario.cloud.v_rel.unwrap_or_default())
+            .length()
+            .max(1e-300)
 }
 
 /// An elastic version of `scenario`: no bonding (H0 huge, no softening, no reaction

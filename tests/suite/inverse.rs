@@ -463,7 +463,7 @@ fn shipped_inverse_files_load_and_p02_end_time_matches_the_paper() {
     let p = InverseProblem::load(&scenarios_dir().join("paper2004_inverse.json")).unwrap();
     let (lo, _) = p.bounds();
     let s = p.scenario_for(&lo, 1).unwrap();
-    assert_eq!(s.cloud.v_rel, [20.0, 2.0, 2.0]);
+    assert_eq!(s.cloud.v_rel, Some([20.0, 2.0, 2.0]));
     assert_eq!(s.material.gamma, Some(1e15));
 }
 

@@ -96,7 +96,7 @@ fn a_body_larger_than_half_the_box_still_meets_its_neighbours() {
     let dir = -1.0 / 3f64.sqrt();
     let grain = json!({ "position": [corner, corner, corner], "velocity": [speed * dir, speed * dir, speed * dir] });
     let mut s = giant(vec![grain]);
-    s.cloud.bodies[0].velocity = [0.0, 0.0, 0.0];
+    s.cloud.bodies[0].velocity = Some([0.0, 0.0, 0.0]);
     let gap = 3f64.sqrt() * corner - 1.05 * 0.01 - B0;
     s.time.end = 1.001 * gap / speed;
     let mut sim = Simulation::new(&s).unwrap();

@@ -193,8 +193,9 @@ pub fn catalogue(base: &Scenario) -> Vec<Reading> {
                 json!({ "impact": { "a0": 0.01 } }),
             ));
         }
-        let vx = base.cloud.v_rel[0];
-        if vx > 0.0 && base.cloud.v_rel[1] == 0.1 * vx && base.cloud.v_rel[2] == 0.1 * vx {
+        let v_rel = base.cloud.v_rel.unwrap_or_default();
+        let vx = v_rel[0];
+        if vx > 0.0 && v_rel[1] == 0.1 * vx && v_rel[2] == 0.1 * vx {
             out.push(Reading::new(
                 "v_rel_yz_10",
                 "y and z amplitudes 10 m/s instead of 0.1 v0",

@@ -43,42 +43,12 @@ pub struct ReadingsArgs {
     pub threads: usize,
 }
 
-/// `base` with each `PATH=VALUE` applied (VALUE parsed as JSON, else taken as a string);
-/// the name gains the settings so the outputs say what ran.
-pub fn with_settings(base: &Scenario, settings: &[String]) -> anyhow::Result<Scenario> {
-    let mut value = serde_json::to_value(base)?;
-    for setting in settings {
-        let (path, raw) = setting
-            .split_once('=')
-            .ok_or_else(|| anyhow::anyhow!("--set {setting}: expected PATH=VALUE"))?;
-        let new: Value = serde_json::from_str(raw).unwrap_or_else(|_| Value::from(raw));
-        let mut slot = &mut value;
-        for key in path.split('.') {
-            slot = match slot {
-                // A missing key is added; the scenario's own parsing then names it if unknown.
-                Value::Object(map) => map.entry(key).or_insert(Value::Null),
-                Value::Array(items) => key
-                    .parse::<usize>()
-                    .ok()
-                    .and_then(|k| items.get_mut(k))
-                    .ok_or_else(|| anyhow::anyhow!("--set {setting}: no element `{key}`"))?,
-                _ => anyhow::bail!("--set {setting}: the scenario has no field `{key}` there"),
-            };
-        }
-        *slot = new;
-    }
-    let mut scenario = Scenario::from_value(value)
-        .map_err(|e| anyhow::anyhow!("--set {}: {e}", settings.join(" ")))?;
-    scenario.name = format!("{} ({})", base.name, settings.join(", "));
-    Ok(scenario)
-}
-
 /// `agglo study readings`: run on `workers`, write, and print the table.
 pub fn run_cli(args: &ReadingsArgs, workers: &crate::farm::Workers) -> anyhow::Result<()> {
     let mut base = Scenario::load(&args.scenario)
         .map_err(|e| anyhow::anyhow!("loading scenario {}: {e}", args.scenario.display()))?;
     if !args.set.is_empty() {
-        base = with_settings(&base, &args.set)?;
+        base = base.with_settings(&args.set)?;
     }
     if args.list {
         for r in catalogue(&base) {

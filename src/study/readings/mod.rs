@@ -64,8 +64,9 @@ mod catalogue;
 mod cli;
 mod report;
 
+pub use crate::scenario::with_settings;
 pub use catalogue::catalogue;
-pub use cli::{ReadingsArgs, run_cli, with_settings};
+pub use cli::{ReadingsArgs, run_cli};
 pub use report::{markdown, write_readings};
 
 /// One run of the study as a task of the farm: the scene, patched and capped, as JSON
@@ -508,7 +509,7 @@ mod tests {
         // The merged patch carries both readings.
         let s = scenario_for(&base, &combos[5], base.seed, None).unwrap();
         assert_eq!(s.impact.max_iterations, 101);
-        assert_eq!(s.cloud.v_rel[1], 10.0);
+        assert_eq!(s.cloud.v_rel.unwrap()[1], 10.0);
     }
 
     #[test]

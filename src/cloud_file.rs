@@ -1,0 +1,105 @@
+//! `cloud.from_file`: explicit bodies read from a table with the columns of
+//! `--final-state` / `--snapshots` (CSV, or Parquet when the name ends in `.parquet`),
+//! so a run can start from another's end state, or from bodies a script wrote.
+//!
+//! Columns: `x`, `y`, `z` [m] required; `vx`, `vy`, `vz` [m/s] (all three or none:
+//! without them velocities are drawn from the cloud's distribution), `id`, `mass` [kg],
+//! `radius` [m], `temperature` [K], `primaries` optional; `hardness` is accepted and
+//! ignored (it follows θ); with a `t` column only the rows of the largest t are taken
+//! (the last sample of `--snapshots`). Any other column is refused, to catch a typo.
+
+use std::path::Path;
+
+use anyhow::{Context, bail};
+
+use crate::cloud::PlacedBody;
+use crate::output::table::read_table;
+
+/// Columns a body table may have.
+pub const KNOWN_COLUMNS: [&str; 13] = [
+    "t",
+    "id",
+    "x",
+    "y",
+    "z",
+    "vx",
+    "vy",
+    "vz",
+    "mass",
+    "radius",
+    "temperature",
+    "hardness",
+    "primaries",
+];
+
+/// The bodies of the table at `path`, in its row order.
+pub fn load_bodies(path: &Path) -> anyhow::Result<Vec<PlacedBody>> {
+    let table = read_table(path)?;
+    for name in &table.names {
+        if !KNOWN_COLUMNS.contains(&name.as_str()) {
+            bail!(
+                "{}: unknown column `{name}` (allowed: {})",
+                path.display(),
+                KNOWN_COLUMNS.join(", ")
+            );
+        }
+    }
+    let has = |name: &str| table.column(name).is_some();
+    let floats = |name: &str| -> anyhow::Result<Option<Vec<f64>>> {
+        has(name)
+            .then(|| table.floats(name))
+            .transpose()
+            .with_context(|| format!("{}", path.display()))
+    };
+    let [x, y, z] = ["x", "y", "z"].map(&floats);
+    let (x, y, z) = match (x?, y?, z?) {
+        (Some(x), Some(y), Some(z)) => (x, y, z),
+        _ => bail!("{}: columns x, y and z are required", path.display()),
+    };
+    let velocity = match (floats("vx")?, floats("vy")?, floats("vz")?) {
+        (Some(vx), Some(vy), Some(vz)) => Some((vx, vy, vz)),
+        (None, None, None) => None,
+        _ => bail!("{}: give all of vx, vy, vz or none", path.display()),
+    };
+    let ids = has("id")
+        .then(|| table.ints("id"))
+        .transpose()
+        .with_context(|| format!("{}", path.display()))?;
+    let (mass, radius, temperature, primaries) = (
+        floats("mass")?,
+        floats("radius")?,
+        floats("temperature")?,
+        floats("primaries")?,
+    );
+    // The rows of the last sample, when the table holds several.
+    let rows: Vec<usize> = match floats("t")? {
+        Some(t) => {
+            let last = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            (0..t.len()).filter(|&k| t[k] == last).collect()
+        }
+        None => (0..x.len()).collect(),
+    };
+    if rows.is_empty() {
+        bail!("{}: no bodies (the table has no rows)", path.display());
+    }
+    rows.into_iter()
+        .map(|k| {
+            let id = match &ids {
+                Some(ids) if ids[k] < 0 => {
+                    bail!("{}: row {k}: id {} is negative", path.display(), ids[k])
+                }
+                Some(ids) => Some(ids[k] as u64),
+                None => None,
+            };
+            Ok(PlacedBody {
+                position: [x[k], y[k], z[k]],
+                velocity: velocity.as_ref().map(|(vx, vy, vz)| [vx[k], vy[k], vz[k]]),
+                primaries: primaries.as_ref().map_or(1.0, |p| p[k]),
+                id,
+                temperature: temperature.as_ref().map(|v| v[k]),
+                mass: mass.as_ref().map(|v| v[k]),
+                radius: radius.as_ref().map(|v| v[k]),
+            })
+        })
+        .collect()
+}

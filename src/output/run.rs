@@ -1,0 +1,254 @@
+//! The tables a run writes while it runs — `--series`, `--sizes`, `--snapshots` on the
+//! schedule of `output.sampling` (or the flags), `--collisions` after every step —
+//! driven from `agglo run`'s observer of `Simulation::run_with`.
+//!
+//! Between samples the observer costs O(1) per step (a look at the clock). At a sample
+//! the bodies are read once through `Simulation::bodies()`, which on the event core
+//! brings each to the current time without changing the world: the event core does no
+//! per-event work for the outputs.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+
+use crate::components::{Mass, Particle, ParticleId, Temperature};
+use crate::resources::LazyState;
+use crate::scenario::Scenario;
+use crate::schedule::Simulation;
+
+use super::collisions::{self, CollisionLog};
+use super::sampling::{SampleSchedule, Sampler};
+use super::series::{SERIES_COLUMNS, series_row};
+use super::sizes::{self, SIZES_COLUMNS, SizeBins};
+use super::table::{Cell, Column, TableWriter, float, int};
+
+/// The columns of `--snapshots`: the time, then the columns of `--final-state`.
+pub const SNAPSHOT_COLUMNS: &[Column] = &[
+    float("t", "s", "simulated time of the sample"),
+    int("id", "-", "stable body id (never reused)"),
+    float("x", "m", "position, x, in [−D, D)"),
+    float("y", "m", "position, y"),
+    float("z", "m", "position, z"),
+    float("vx", "m/s", "velocity, x"),
+    float("vy", "m/s", "velocity, y"),
+    float("vz", "m/s", "velocity, z"),
+    float("mass", "kg", "mass"),
+    float("radius", "m", "radius"),
+    float("temperature", "K", "temperature θ"),
+    float("hardness", "Pa", "hardness H(θ)"),
+    float("primaries", "-", "primary grains in the body"),
+];
+
+/// Where the tables go and when they are sampled, from the flags over the `output`
+/// section.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TablePaths {
+    pub series: Option<PathBuf>,
+    pub sizes: Option<PathBuf>,
+    pub snapshots: Option<PathBuf>,
+    pub collisions: Option<PathBuf>,
+    pub sampling: Option<SampleSchedule>,
+}
+
+impl TablePaths {
+    /// True when no table is asked for.
+    pub fn is_empty(&self) -> bool {
+        self.series.is_none()
+            && self.sizes.is_none()
+            && self.snapshots.is_none()
+            && self.collisions.is_none()
+    }
+
+    /// The scenario's simulation with the built-in physics, collecting what these tables
+    /// read (the impacts, for `collisions`).
+    pub fn simulation(&self, scenario: &Scenario) -> Result<Simulation, crate::error::SimError> {
+        use agglo_systems::AddDefaultPlugins;
+        let mut builder = Simulation::builder(scenario)?;
+        builder.add_default_plugins();
+        if self.collisions.is_some() {
+            collisions::subscribe(&mut builder);
+        }
+        builder.build()
+    }
+}
+
+/// The tables of one run, open.
+pub struct RunTables {
+    sampler: Sampler,
+    series: Option<TableWriter>,
+    sizes: Option<(TableWriter, SizeBins)>,
+    snapshots: Option<TableWriter>,
+    collisions: Option<CollisionLog>,
+    samples: u64,
+}
+
+/// What the tables hold when a run ends.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TablesReport {
+    pub samples: u64,
+    /// Rows of the collision log (impacts).
+    pub collisions: u64,
+}
+
+impl RunTables {
+    /// Open the tables `paths` asks for (none: `None`) and take the sample at t = 0.
+    pub fn open(
+        paths: &TablePaths,
+        scenario: &Scenario,
+        sim: &Simulation,
+    ) -> anyhow::Result<Option<Self>> {
+        if paths.is_empty() {
+            return Ok(None);
+        }
+        let create = |path: &Option<PathBuf>, name: &str, columns: &'static [Column]| {
+            path.as_deref()
+                .map(|p: &Path| TableWriter::create(p, name, columns))
+                .transpose()
+        };
+        let series = create(&paths.series, "series", SERIES_COLUMNS)?;
+        let snapshots = create(&paths.snapshots, "snapshots", SNAPSHOT_COLUMNS)?;
+        let sizes = match create(&paths.sizes, "sizes", SIZES_COLUMNS)? {
+            Some(table) => {
+                let can_fragment = sim.systems().iter().any(|s| s.contains("fragment"));
+                let bins = scenario
+                    .output
+                    .size_bins
+                    .resolve(&sim.bodies(), can_fragment);
+                Some((table, bins))
+            }
+            None => None,
+        };
+        if paths.collisions.is_some()
+            && sim
+                .world()
+                .get_resource::<crate::hooks::Messages<crate::hooks::ImpactMessage>>()
+                .is_none()
+        {
+            anyhow::bail!(
+                "--collisions needs the impacts: build the simulation with TablePaths::simulation"
+            );
+        }
+        let collisions = paths
+            .collisions
+            .as_deref()
+            .map(CollisionLog::create)
+            .transpose()?;
+        let schedule = paths
+            .sampling
+            .unwrap_or_else(|| SampleSchedule::default_for(scenario.time.end));
+        let mut tables = Self {
+            sampler: Sampler::new(schedule, scenario.time.end),
+            series,
+            sizes,
+            snapshots,
+            collisions,
+            samples: 0,
+        };
+        tables.observe(sim)?;
+        Ok(Some(tables))
+    }
+
+    /// After a step: log its impacts, and take a sample if one is due.
+    pub fn observe(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        if let Some(log) = &mut self.collisions {
+            log.observe(sim)?;
+        }
+        let c = sim.clock();
+        if self.sampler.due(c.step, c.time) {
+            self.sample(sim)?;
+        }
+        Ok(())
+    }
+
+    /// Take the last sample (unless one was taken at this time) and close the files.
+    pub fn finish(mut self, sim: &Simulation) -> anyhow::Result<TablesReport> {
+        if self.sampler.last().is_none_or(|t| t < sim.clock().time) {
+            self.sample(sim)?;
+        }
+        for table in [self.series, self.sizes.map(|s| s.0), self.snapshots]
+            .into_iter()
+            .flatten()
+        {
+            table.finish()?;
+        }
+        let collisions = self.collisions.as_ref().map_or(0, CollisionLog::rows);
+        if let Some(log) = self.collisions {
+            log.finish()?;
+        }
+        Ok(TablesReport {
+            samples: self.samples,
+            collisions,
+        })
+    }
+
+    fn sample(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        let t = sim.clock().time;
+        let bodies = sim.bodies();
+        if let Some(series) = &mut self.series {
+            let pending = pending_cooling(sim, &bodies);
+            series
+                .row(&series_row(sim, &bodies, pending))
+                .context("writing the time series")?;
+        }
+        if let Some((table, bins)) = &mut self.sizes {
+            let by = sizes::label(*bins);
+            for row in sizes::size_rows(*bins, &bodies, sim.primary().radius) {
+                table
+                    .row(&sizes::cells(t, by, row))
+                    .context("writing the size distribution")?;
+            }
+        }
+        if let Some(table) = &mut self.snapshots {
+            for b in &bodies {
+                table
+                    .row(&[
+                        Cell::F(t),
+                        Cell::I(b.id as i64),
+                        Cell::F(b.position.x),
+                        Cell::F(b.position.y),
+                        Cell::F(b.position.z),
+                        Cell::F(b.velocity.x),
+                        Cell::F(b.velocity.y),
+                        Cell::F(b.velocity.z),
+                        Cell::F(b.mass),
+                        Cell::F(b.radius),
+                        Cell::F(b.temperature),
+                        Cell::F(b.hardness),
+                        Cell::F(b.primaries),
+                    ])
+                    .context("writing the snapshots")?;
+            }
+        }
+        self.sampler.taken(t);
+        self.samples += 1;
+        Ok(())
+    }
+}
+
+/// Heat [J] the event core's bodies have lost by cooling since they were last brought
+/// up to date: Σ m C (θ_stored − θ_now), not yet in the ledger (it is booked when each
+/// body is next touched, and at the end of the run). 0 on the stepped core. `bodies` are
+/// the bodies at now, sorted by id.
+fn pending_cooling(sim: &Simulation, bodies: &[crate::components::BodyState]) -> f64 {
+    let world = sim.world();
+    if !world.resource::<LazyState>().0 {
+        return 0.0;
+    }
+    let Some(mut query) =
+        world.try_query_filtered::<(&ParticleId, &Mass, &Temperature), bevy_ecs::prelude::With<Particle>>()
+    else {
+        return 0.0;
+    };
+    let mut stored: Vec<(u64, f64, f64)> = query
+        .iter(world)
+        .map(|(id, m, t)| (id.0, m.0, t.0))
+        .collect();
+    stored.sort_by_key(|s| s.0);
+    let c = sim.material().C;
+    // Summed in id order: the same on any thread count.
+    stored
+        .iter()
+        .zip(bodies)
+        .map(|(&(_, m, theta), now)| m * c * (theta - now.temperature))
+        .sum()
+}

@@ -1,0 +1,204 @@
+//! When `--series`, `--sizes` and `--snapshots` take a sample (`output.sampling`): every
+//! Δt of simulated time, log-spaced in time (aggregation spans decades), or every k
+//! steps. A sample is also taken at t = 0 and at the end of the run.
+//!
+//! A sample is taken at the end of the first step that reaches a scheduled time, and
+//! its `t` column is that step's end time: the engine does not stop at sample times
+//! (that would change the stepping, and so the run). On the event core a step ends at
+//! each event, so the lag is one inter-event time.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// Samples per run when `output.sampling` is not given (every T/100).
+pub const DEFAULT_SAMPLES: f64 = 100.0;
+
+/// Decades covered by a log schedule whose `first` time is not given: first = T/10⁴.
+pub const DEFAULT_LOG_DECADES: i32 = 4;
+
+/// The sampling schedule of the time series, size distribution and snapshots.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum SampleSchedule {
+    /// Every `dt` [s] of simulated time (t = 0, dt, 2 dt, …).
+    Interval {
+        /// Δt between samples [s], > 0.
+        dt: f64,
+    },
+    /// Log-spaced: t = 0, then t_k = first · 10^(k / per_decade), k = 0, 1, …, up to T.
+    Log {
+        /// First sample time after t = 0 [s], > 0 (default T/10⁴).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        first: Option<f64>,
+        /// Samples per decade of time, ≥ 1.
+        per_decade: u32,
+    },
+    /// Every `every` steps (on the event core a step ends at each event time: every k events).
+    Steps {
+        /// Steps between samples, ≥ 1.
+        every: u64,
+    },
+}
+
+impl SampleSchedule {
+    /// The schedule used when none is given: every T/100 of a run of length `end` [s].
+    pub fn default_for(end: f64) -> Self {
+        SampleSchedule::Interval {
+            dt: end / DEFAULT_SAMPLES,
+        }
+    }
+
+    /// Problems with the schedule's numbers as (field under `output.sampling`, allowed).
+    pub fn problems(&self) -> Vec<(&'static str, &'static str, f64)> {
+        let mut out = Vec::new();
+        match *self {
+            SampleSchedule::Interval { dt } => {
+                if !(dt.is_finite() && dt > 0.0) {
+                    out.push(("interval.dt", "a finite number > 0", dt));
+                }
+            }
+            SampleSchedule::Log { first, per_decade } => {
+                if let Some(f) = first
+                    && !(f.is_finite() && f > 0.0)
+                {
+                    out.push(("log.first", "a finite number > 0", f));
+                }
+                if per_decade == 0 {
+                    out.push(("log.per_decade", "≥ 1", 0.0));
+                }
+            }
+            SampleSchedule::Steps { every } => {
+                if every == 0 {
+                    out.push(("steps.every", "≥ 1", 0.0));
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The schedule running: which sample is next.
+#[derive(Debug, Clone)]
+pub struct Sampler {
+    schedule: SampleSchedule,
+    end: f64,
+    /// Index of the next scheduled time (interval and log schedules).
+    k: u64,
+    /// Time of the last sample taken [s].
+    last: Option<f64>,
+}
+
+impl Sampler {
+    /// The schedule of a run that ends at `end` [s].
+    pub fn new(schedule: SampleSchedule, end: f64) -> Self {
+        Self {
+            schedule,
+            end,
+            k: 0,
+            last: None,
+        }
+    }
+
+    /// The k-th scheduled time after t = 0 [s] (interval and log schedules).
+    fn time_of(&self, k: u64) -> f64 {
+        match self.schedule {
+            SampleSchedule::Interval { dt } => (k + 1) as f64 * dt,
+            SampleSchedule::Log { first, per_decade } => {
+                let first = first.unwrap_or(self.end * 10f64.powi(-DEFAULT_LOG_DECADES));
+                first * 10f64.powf(k as f64 / f64::from(per_decade))
+            }
+            SampleSchedule::Steps { .. } => f64::INFINITY,
+        }
+    }
+
+    /// Whether a sample is due at the end of step `step` (steps completed), at time `t`
+    /// [s]; when it is, the schedule moves past `t`. O(1) per call, apart from the
+    /// scheduled times a long step skips over.
+    pub fn due(&mut self, step: u64, t: f64) -> bool {
+        if self.last.is_none() {
+            return true; // t = 0
+        }
+        let due = match self.schedule {
+            SampleSchedule::Steps { every } => step.is_multiple_of(every),
+            _ => {
+                // A relative 1e-12 of slack, so a step that lands on k·Δt up to rounding counts.
+                let reached = |when: f64| t >= when * (1.0 - 1e-12);
+                if reached(self.time_of(self.k)) {
+                    while reached(self.time_of(self.k)) {
+                        self.k += 1;
+                    }
+                    true
+                } else {
+                    false
+                }
+            }
+        };
+        due || (t >= self.end && self.last.is_some_and(|last| last < t))
+    }
+
+    /// Note that a sample was taken at `t` [s].
+    pub fn taken(&mut self, t: f64) {
+        self.last = Some(t);
+    }
+
+    /// Time of the last sample taken [s].
+    pub fn last(&self) -> Option<f64> {
+        self.last
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn times(schedule: SampleSchedule, end: f64, steps: &[f64]) -> Vec<f64> {
+        let mut s = Sampler::new(schedule, end);
+        let mut out = Vec::new();
+        if s.due(0, 0.0) {
+            s.taken(0.0);
+            out.push(0.0);
+        }
+        for (i, &t) in steps.iter().enumerate() {
+            if s.due(i as u64 + 1, t) {
+                s.taken(t);
+                out.push(t);
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn interval_samples_at_the_first_step_past_each_multiple() {
+        let steps: Vec<f64> = (1..=10).map(|i| i as f64 * 0.3).collect();
+        // Multiples of 1: reached at 1.2, 2.1, 3.0 (= 10 · 0.3 up to rounding).
+        let got = times(SampleSchedule::Interval { dt: 1.0 }, 3.0, &steps);
+        assert_eq!(got.len(), 4, "{got:?}");
+        assert_eq!(got[0], 0.0);
+        assert!((got[1] - 1.2).abs() < 1e-12 && (got[2] - 2.1).abs() < 1e-12);
+        assert!((got[3] - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn log_schedule_has_per_decade_samples_per_decade() {
+        let steps: Vec<f64> = (1..=100_000).map(|i| i as f64 * 1e-5).collect();
+        let schedule = SampleSchedule::Log {
+            first: Some(1e-3),
+            per_decade: 5,
+        };
+        let got = times(schedule, 1.0, &steps);
+        // t = 0, then 1e-3 … 1 at 5 per decade: 3 decades · 5 + 1 = 16 samples.
+        assert_eq!(got.len(), 17, "{got:?}");
+        for w in got[1..].windows(2) {
+            let ratio = w[1] / w[0];
+            // Steps of 1e-5 move each sample at most 1e-5 past its time (≥ 1e-3): ≤ 1 %.
+            assert!((ratio / 10f64.powf(0.2) - 1.0).abs() < 0.02, "{ratio}");
+        }
+    }
+
+    #[test]
+    fn step_schedule_counts_steps_and_ends_with_the_last_step() {
+        let steps: Vec<f64> = (1..=10).map(|i| i as f64).collect();
+        let got = times(SampleSchedule::Steps { every: 4 }, 10.0, &steps);
+        assert_eq!(got, vec![0.0, 4.0, 8.0, 10.0]);
+    }
+}

@@ -1,0 +1,462 @@
+//! Tables written row by row as CSV, or as Parquet when the path ends in `.parquet`,
+//! and read back by [`read_table`] (the tests, and `cloud.from_file`).
+//!
+//! CSV: a header line, then one line per row; floats in shortest round-trip form
+//! (`ryu`), so they parse back to the same bits; counts as integers; no quoting
+//! (no value holds a comma). Parquet: one required column per field (DOUBLE, INT64 or
+//! UTF8 BYTE_ARRAY), zstd-compressed, through the crate's low-level column writer (no
+//! Arrow). Rows are buffered per column and written as a row group every
+//! [`ROW_GROUP_ROWS`] rows, so memory stays bounded however long the run.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::{Context, bail};
+use parquet::basic::{Compression, ZstdLevel};
+use parquet::data_type::{ByteArray, ByteArrayType, DoubleType, Int64Type};
+use parquet::file::properties::WriterProperties;
+use parquet::file::reader::FileReader;
+use parquet::file::serialized_reader::SerializedFileReader;
+use parquet::file::writer::SerializedFileWriter;
+use parquet::record::Field;
+use parquet::schema::parser::parse_message_type;
+
+/// Rows buffered before a Parquet row group is written (13 DOUBLE columns: ~14 MB).
+pub const ROW_GROUP_ROWS: usize = 131_072;
+
+/// What a column holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// A float (DOUBLE).
+    Float,
+    /// A count or id (INT64).
+    Int,
+    /// A word (UTF8).
+    Text,
+}
+
+/// One column of an output table, with its unit and meaning (printed by
+/// `agglo schema --outputs`, listed in docs/outputs.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Column {
+    pub name: &'static str,
+    pub kind: Kind,
+    /// SI unit, `-` for a pure number.
+    pub unit: &'static str,
+    pub doc: &'static str,
+}
+
+/// A float column.
+pub const fn float(name: &'static str, unit: &'static str, doc: &'static str) -> Column {
+    Column {
+        name,
+        kind: Kind::Float,
+        unit,
+        doc,
+    }
+}
+
+/// An integer column (counts and ids).
+pub const fn int(name: &'static str, unit: &'static str, doc: &'static str) -> Column {
+    Column {
+        name,
+        kind: Kind::Int,
+        unit,
+        doc,
+    }
+}
+
+/// A text column.
+pub const fn text(name: &'static str, doc: &'static str) -> Column {
+    Column {
+        name,
+        kind: Kind::Text,
+        unit: "-",
+        doc,
+    }
+}
+
+/// One value of a row, of its column's kind.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Cell<'a> {
+    F(f64),
+    I(i64),
+    S(&'a str),
+}
+
+/// True when `path` names a Parquet file (its name ends in `.parquet`).
+pub fn is_parquet(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("parquet"))
+}
+
+/// A table being written.
+pub struct TableWriter {
+    columns: &'static [Column],
+    sink: Sink,
+    rows: u64,
+}
+
+enum Sink {
+    Csv(BufWriter<File>),
+    Parquet(Box<ParquetSink>),
+}
+
+struct ParquetSink {
+    writer: SerializedFileWriter<File>,
+    buffers: Vec<Buffer>,
+    buffered: usize,
+}
+
+enum Buffer {
+    F(Vec<f64>),
+    I(Vec<i64>),
+    S(Vec<ByteArray>),
+}
+
+impl TableWriter {
+    /// Create `path` for rows of `columns` (Parquet if it ends in `.parquet`, else CSV);
+    /// `name` names the Parquet schema.
+    pub fn create(path: &Path, name: &str, columns: &'static [Column]) -> anyhow::Result<Self> {
+        let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        let sink = if is_parquet(path) {
+            let fields: String = columns
+                .iter()
+                .map(|c| match c.kind {
+                    Kind::Float => format!("REQUIRED DOUBLE {};", c.name),
+                    Kind::Int => format!("REQUIRED INT64 {};", c.name),
+                    Kind::Text => format!("REQUIRED BYTE_ARRAY {} (UTF8);", c.name),
+                })
+                .collect();
+            let schema = Arc::new(parse_message_type(&format!(
+                "message {name} {{ {fields} }}"
+            ))?);
+            let props = WriterProperties::builder()
+                .set_compression(Compression::ZSTD(ZstdLevel::default()))
+                .build();
+            let writer = SerializedFileWriter::new(file, schema, Arc::new(props))?;
+            let buffers = columns
+                .iter()
+                .map(|c| match c.kind {
+                    Kind::Float => Buffer::F(Vec::new()),
+                    Kind::Int => Buffer::I(Vec::new()),
+                    Kind::Text => Buffer::S(Vec::new()),
+                })
+                .collect();
+            Sink::Parquet(Box::new(ParquetSink {
+                writer,
+                buffers,
+                buffered: 0,
+            }))
+        } else {
+            let mut out = BufWriter::new(file);
+            let header: Vec<&str> = columns.iter().map(|c| c.name).collect();
+            writeln!(out, "{}", header.join(","))?;
+            Sink::Csv(out)
+        };
+        Ok(Self {
+            columns,
+            sink,
+            rows: 0,
+        })
+    }
+
+    /// Rows written so far.
+    pub fn rows(&self) -> u64 {
+        self.rows
+    }
+
+    /// Append one row: one cell per column, of the column's kind.
+    pub fn row(&mut self, cells: &[Cell]) -> anyhow::Result<()> {
+        debug_assert_eq!(cells.len(), self.columns.len());
+        self.rows += 1;
+        match &mut self.sink {
+            Sink::Csv(out) => {
+                let mut floats = ryu::Buffer::new();
+                let mut ints = itoa::Buffer::new();
+                for (k, cell) in cells.iter().enumerate() {
+                    if k > 0 {
+                        out.write_all(b",")?;
+                    }
+                    match cell {
+                        // Shortest representation that parses back to the same f64
+                        // (non-finite values as Rust and pandas read them: NaN, inf).
+                        Cell::F(x) if x.is_finite() => {
+                            out.write_all(floats.format_finite(*x).as_bytes())?
+                        }
+                        Cell::F(x) => write!(out, "{x}")?,
+                        Cell::I(n) => out.write_all(ints.format(*n).as_bytes())?,
+                        Cell::S(s) => out.write_all(s.as_bytes())?,
+                    }
+                }
+                out.write_all(b"\n")?;
+            }
+            Sink::Parquet(p) => {
+                for (buffer, cell) in p.buffers.iter_mut().zip(cells) {
+                    match (buffer, cell) {
+                        (Buffer::F(v), Cell::F(x)) => v.push(*x),
+                        (Buffer::I(v), Cell::I(n)) => v.push(*n),
+                        (Buffer::S(v), Cell::S(s)) => v.push(ByteArray::from(*s)),
+                        _ => bail!("a cell of the wrong kind for its column (a bug)"),
+                    }
+                }
+                p.buffered += 1;
+                if p.buffered >= ROW_GROUP_ROWS {
+                    p.flush()?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Write what is buffered and close the file.
+    pub fn finish(self) -> anyhow::Result<()> {
+        match self.sink {
+            Sink::Csv(mut out) => out.flush()?,
+            Sink::Parquet(mut p) => {
+                p.flush()?;
+                p.writer.close()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl ParquetSink {
+    /// Write the buffered rows as one row group.
+    fn flush(&mut self) -> anyhow::Result<()> {
+        if self.buffered == 0 {
+            return Ok(());
+        }
+        let mut group = self.writer.next_row_group()?;
+        let mut buffers = self.buffers.iter_mut();
+        while let Some(mut column) = group.next_column()? {
+            let buffer = buffers
+                .next()
+                .context("more columns than buffers (a bug)")?;
+            match buffer {
+                Buffer::F(v) => {
+                    column.typed::<DoubleType>().write_batch(v, None, None)?;
+                    v.clear();
+                }
+                Buffer::I(v) => {
+                    column.typed::<Int64Type>().write_batch(v, None, None)?;
+                    v.clear();
+                }
+                Buffer::S(v) => {
+                    column.typed::<ByteArrayType>().write_batch(v, None, None)?;
+                    v.clear();
+                }
+            }
+            column.close()?;
+        }
+        group.close()?;
+        self.buffered = 0;
+        Ok(())
+    }
+}
+
+/// A table read back: column names and, per column, its values.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Table {
+    pub names: Vec<String>,
+    pub columns: Vec<Values>,
+}
+
+/// The values of one column.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Values {
+    F(Vec<f64>),
+    I(Vec<i64>),
+    S(Vec<String>),
+}
+
+impl Table {
+    /// Rows in the table.
+    pub fn len(&self) -> usize {
+        self.columns.first().map_or(0, |c| match c {
+            Values::F(v) => v.len(),
+            Values::I(v) => v.len(),
+            Values::S(v) => v.len(),
+        })
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// The column called `name`, if there is one.
+    pub fn column(&self, name: &str) -> Option<&Values> {
+        let k = self.names.iter().position(|n| n == name)?;
+        Some(&self.columns[k])
+    }
+    /// Column `name` as floats (integers converted); an error names a missing or text column.
+    pub fn floats(&self, name: &str) -> anyhow::Result<Vec<f64>> {
+        match self.column(name) {
+            Some(Values::F(v)) => Ok(v.clone()),
+            Some(Values::I(v)) => Ok(v.iter().map(|&n| n as f64).collect()),
+            Some(Values::S(_)) => bail!("column `{name}` holds text, not numbers"),
+            None => bail!("no column `{name}` (columns: {})", self.names.join(", ")),
+        }
+    }
+    /// Column `name` as integers; an error names a missing column or a non-integer value.
+    pub fn ints(&self, name: &str) -> anyhow::Result<Vec<i64>> {
+        match self.column(name) {
+            Some(Values::I(v)) => Ok(v.clone()),
+            Some(Values::F(v)) => v
+                .iter()
+                .enumerate()
+                .map(|(row, &x)| {
+                    if x.fract() == 0.0 && x.abs() < 9.0e15 {
+                        Ok(x as i64)
+                    } else {
+                        bail!("column `{name}`, row {row}: {x} is not an integer")
+                    }
+                })
+                .collect(),
+            Some(Values::S(_)) => bail!("column `{name}` holds text, not numbers"),
+            None => bail!("no column `{name}` (columns: {})", self.names.join(", ")),
+        }
+    }
+    /// Column `name` as text.
+    pub fn texts(&self, name: &str) -> anyhow::Result<Vec<String>> {
+        match self.column(name) {
+            Some(Values::S(v)) => Ok(v.clone()),
+            Some(Values::F(v)) => Ok(v.iter().map(|x| format!("{x:?}")).collect()),
+            Some(Values::I(v)) => Ok(v.iter().map(|x| x.to_string()).collect()),
+            None => bail!("no column `{name}` (columns: {})", self.names.join(", ")),
+        }
+    }
+}
+
+/// Read a table written by [`TableWriter`] (or any CSV with a header line and unquoted
+/// fields, e.g. pandas' `to_csv(index=False)`, or a Parquet file of flat required or
+/// optional DOUBLE / INT64 / INT32 / FLOAT / UTF8 columns). A CSV column whose every
+/// value parses as an integer is read as integers, else as floats if they all parse,
+/// else as text.
+pub fn read_table(path: &Path) -> anyhow::Result<Table> {
+    if is_parquet(path) {
+        read_parquet(path).with_context(|| format!("reading Parquet file {}", path.display()))
+    } else {
+        read_csv(path).with_context(|| format!("reading CSV file {}", path.display()))
+    }
+}
+
+fn read_csv(path: &Path) -> anyhow::Result<Table> {
+    let text = std::fs::read_to_string(path)?;
+    let mut lines = text.lines();
+    let header = lines.next().context("the file is empty (no header line)")?;
+    let names: Vec<String> = header
+        .split(',')
+        .map(|s| s.trim().trim_matches('"').to_string())
+        .collect();
+    // Parsed as they come, without a String per field (10⁶ bodies × 13 columns): a
+    // column stays integer while every value is, turns float at the first that is not,
+    // and text at the first that is no number (then it is read again as text).
+    let mut columns: Vec<Values> = names.iter().map(|_| Values::I(Vec::new())).collect();
+    let mut text_columns = vec![false; names.len()];
+    let mut rows = 0usize;
+    for (k, line) in lines.enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let mut fields = 0;
+        for (c, field) in line.split(',').enumerate() {
+            fields += 1;
+            let Some(column) = columns.get_mut(c) else {
+                continue;
+            };
+            if text_columns[c] {
+                continue;
+            }
+            let field = field.trim();
+            match column {
+                Values::I(v) => match field.parse::<i64>() {
+                    Ok(n) => v.push(n),
+                    Err(_) => match field.parse::<f64>() {
+                        Ok(x) => {
+                            let mut f: Vec<f64> = v.iter().map(|&n| n as f64).collect();
+                            f.push(x);
+                            *column = Values::F(f);
+                        }
+                        Err(_) => text_columns[c] = true,
+                    },
+                },
+                Values::F(v) => match field.parse::<f64>() {
+                    Ok(x) => v.push(x),
+                    Err(_) => text_columns[c] = true,
+                },
+                Values::S(_) => {}
+            }
+        }
+        if fields != names.len() {
+            bail!(
+                "line {}: {fields} fields, but the header names {}",
+                k + 2,
+                names.len()
+            );
+        }
+        rows += 1;
+    }
+    for (c, is_text) in text_columns.iter().enumerate() {
+        if *is_text {
+            let values = text
+                .lines()
+                .skip(1)
+                .filter(|l| !l.trim().is_empty())
+                .map(|l| l.split(',').nth(c).unwrap_or("").trim().to_string())
+                .collect();
+            columns[c] = Values::S(values);
+        }
+    }
+    debug_assert!(columns.iter().all(|c| match c {
+        Values::F(v) => v.len() == rows,
+        Values::I(v) => v.len() == rows,
+        Values::S(v) => v.len() == rows,
+    }));
+    Ok(Table { names, columns })
+}
+
+fn read_parquet(path: &Path) -> anyhow::Result<Table> {
+    let reader = SerializedFileReader::new(File::open(path)?)?;
+    let schema = reader.metadata().file_metadata().schema_descr_ptr();
+    let names: Vec<String> = schema
+        .columns()
+        .iter()
+        .map(|c| c.name().to_string())
+        .collect();
+    let mut columns: Vec<Option<Values>> = vec![None; names.len()];
+    for (row_number, row) in reader.get_row_iter(None)?.enumerate() {
+        let row = row?;
+        for (k, (name, field)) in row.get_column_iter().enumerate() {
+            let Some(column) = columns.get_mut(k) else {
+                bail!("row {row_number}: more fields than columns");
+            };
+            // Floats and integers of any width widen to f64 / i64.
+            let value = match field {
+                Field::Double(x) => Values::F(vec![*x]),
+                Field::Float(x) => Values::F(vec![f64::from(*x)]),
+                Field::Long(n) => Values::I(vec![*n]),
+                Field::Int(n) => Values::I(vec![i64::from(*n)]),
+                Field::Str(s) => Values::S(vec![s.clone()]),
+                Field::Null => Values::F(vec![f64::NAN]),
+                other => bail!("row {row_number}, column `{name}`: unsupported value {other:?}"),
+            };
+            match (column, value) {
+                (slot @ None, value) => *slot = Some(value),
+                (Some(Values::F(v)), Values::F(x)) => v.extend(x),
+                (Some(Values::I(v)), Values::I(x)) => v.extend(x),
+                (Some(Values::S(v)), Values::S(x)) => v.extend(x),
+                (Some(Values::F(v)), Values::I(x)) => v.extend(x.into_iter().map(|n| n as f64)),
+                _ => bail!("row {row_number}, column `{name}`: values of mixed kinds"),
+            }
+        }
+    }
+    Ok(Table {
+        names,
+        columns: columns
+            .into_iter()
+            .map(|c| c.unwrap_or(Values::F(Vec::new())))
+            .collect(),
+    })
+}
