@@ -27,6 +27,7 @@
 pub mod charts;
 pub mod farm;
 pub mod inverse;
+pub mod live;
 pub mod output;
 pub mod record;
 pub mod scenario;

@@ -16,6 +16,7 @@ mod events;
 mod extension;
 mod inverse;
 mod layout;
+mod live;
 mod pipeline_from_outside;
 mod properties;
 mod readings;
