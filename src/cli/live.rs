@@ -89,7 +89,7 @@ pub fn bind_run(args: &LiveArgs) -> anyhow::Result<Option<(Server, LiveOptions)>
         max_bodies: args.live_bodies,
     };
     check_options(&options)?;
-    let server = Server::bind(options.addr, "agglo run")?;
+    let server = Server::bind(options.addr, "agglo run", agglo::live::run::topics()?)?;
     Ok(Some((server, options)))
 }
 
@@ -126,7 +126,8 @@ pub fn start_inverse(
     let Some(text) = &args.live else {
         return Ok(None);
     };
-    let server = Server::bind(parse_addr(text)?, "agglo optimize")?;
+    let topics = agglo::live::inverse::topics(problem)?;
+    let server = Server::bind(parse_addr(text)?, "agglo optimize", topics)?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let layout: PathBuf = out.join("live.layout.json");
     let text = serde_json::to_string_pretty(&agglo::live::inverse::layout(problem))?;

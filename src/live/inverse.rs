@@ -216,6 +216,19 @@ pub fn layout(problem: &InverseProblem) -> Value {
     })
 }
 
+/// The channels of a live inverse problem, for [`Server::bind`].
+pub fn topics(problem: &InverseProblem) -> anyhow::Result<Vec<super::Topic>> {
+    let schema = serde_json::to_vec(&schema(problem))?;
+    Ok(vec![
+        (
+            GENERATIONS_TOPIC,
+            "json",
+            foxglove::Schema::new(GENERATION_SCHEMA, "jsonschema", schema),
+        ),
+        (EVENTS_TOPIC, "protobuf", messages::log_schema()?),
+    ])
+}
+
 /// Log time [ns] of generation g: g + 1 seconds.
 fn log_time(generation: usize) -> u64 {
     (generation as u64 + 1).saturating_mul(1_000_000_000)
@@ -240,13 +253,8 @@ impl LiveInverse {
         wait: bool,
         stop: &std::sync::atomic::AtomicBool,
     ) -> anyhow::Result<Self> {
-        let schema = serde_json::to_vec(&schema(problem))?;
-        let generations = server.channel(
-            GENERATIONS_TOPIC,
-            "json",
-            foxglove::Schema::new(GENERATION_SCHEMA, "jsonschema", schema),
-        )?;
-        let events = server.channel(EVENTS_TOPIC, "protobuf", messages::log_schema()?)?;
+        let generations = server.channel(GENERATIONS_TOPIC)?;
+        let events = server.channel(EVENTS_TOPIC)?;
         if wait {
             eprintln!(
                 "live: waiting for a client to subscribe on {} (Ctrl-C to stop)",

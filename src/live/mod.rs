@@ -98,16 +98,38 @@ pub fn check_options(o: &LiveOptions) -> anyhow::Result<()> {
 
 /// A bound WebSocket server with its own Foxglove context (its channels reach only it).
 pub struct Server {
-    context: Arc<Context>,
+    /// Kept alive with the server: dropping the context would close the channels.
+    _context: Arc<Context>,
+    channels: Vec<Arc<RawChannel>>,
     handle: Option<foxglove::WebSocketServerHandle>,
     addr: SocketAddr,
 }
 
+/// A channel to create: topic, message encoding, schema.
+pub type Topic = (&'static str, &'static str, Schema);
+
 impl Server {
-    /// Bind `addr` and start serving (no channels yet). Errors name the address and say
-    /// why: in use, not an address of this machine, no permission.
-    pub fn bind(addr: SocketAddr, name: &str) -> anyhow::Result<Self> {
+    /// Create the channels of `topics`, then bind `addr` and start serving them. Errors
+    /// name the address and say why: in use, not an address of this machine, no
+    /// permission.
+    ///
+    /// The channels exist before the first client can connect: a channel created while a
+    /// client is connected is advertised to it before the server can route its
+    /// subscription ("Unknown channel ID" from foxglove 0.30), and that client would
+    /// never receive it.
+    pub fn bind(addr: SocketAddr, name: &str, topics: Vec<Topic>) -> anyhow::Result<Self> {
         let context = Context::new();
+        let channels = topics
+            .into_iter()
+            .map(|(topic, encoding, schema)| {
+                context
+                    .channel_builder(topic)
+                    .message_encoding(encoding)
+                    .schema(schema)
+                    .build_raw()
+                    .with_context(|| format!("creating live channel {topic}"))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
         let host = match addr {
             SocketAddr::V4(a) => a.ip().to_string(),
             SocketAddr::V6(a) => format!("[{}]", a.ip()),
@@ -121,7 +143,8 @@ impl Server {
             .map_err(|e| bind_error(addr, e))?;
         let bound = SocketAddr::new(addr.ip(), handle.port());
         Ok(Self {
-            context,
+            _context: context,
+            channels,
             handle: Some(handle),
             addr: bound,
         })
@@ -145,19 +168,13 @@ impl Server {
         )
     }
 
-    /// A channel of this server.
-    pub fn channel(
-        &self,
-        topic: &str,
-        encoding: &str,
-        schema: Schema,
-    ) -> anyhow::Result<Arc<RawChannel>> {
-        self.context
-            .channel_builder(topic)
-            .message_encoding(encoding)
-            .schema(schema)
-            .build_raw()
-            .with_context(|| format!("creating live channel {topic}"))
+    /// The channel of `topic` (created by [`Server::bind`]).
+    pub fn channel(&self, topic: &str) -> anyhow::Result<Arc<RawChannel>> {
+        self.channels
+            .iter()
+            .find(|c| c.topic() == topic)
+            .cloned()
+            .with_context(|| format!("the live server has no channel {topic}"))
     }
 
     /// Clients connected now.

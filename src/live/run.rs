@@ -40,6 +40,21 @@ pub const SUBSET_NOTE_ID: &str = "live_subset";
 /// the run too); `--live-rate` only ever lowers the rate further.
 pub const TIME_BUDGET: f64 = 0.02;
 
+/// The channels of a run, for [`Server::bind`]: the recording's topics and schemas.
+pub fn topics() -> anyhow::Result<Vec<super::Topic>> {
+    let scene = messages::scene_schema()?;
+    Ok(vec![
+        (PARTICLES_TOPIC, "protobuf", scene.clone()),
+        (BOX_TOPIC, "protobuf", scene),
+        (
+            STATS_TOPIC,
+            "json",
+            foxglove::Schema::new(messages::STATS_SCHEMA, "jsonschema", Stats::schema_bytes()),
+        ),
+        (EVENTS_TOPIC, "protobuf", messages::log_schema()?),
+    ])
+}
+
 /// The four channels of a run.
 struct Channels {
     particles: Arc<RawChannel>,
@@ -122,16 +137,11 @@ impl LiveRun {
         let scenario = sim.world().get_resource::<Scenario>().ok_or_else(|| {
             anyhow::anyhow!("a live run needs a simulation built from a Scenario")
         })?;
-        let scene = messages::scene_schema()?;
         let channels = Arc::new(Channels {
-            particles: server.channel(PARTICLES_TOPIC, "protobuf", scene.clone())?,
-            bbox: server.channel(BOX_TOPIC, "protobuf", scene)?,
-            stats: server.channel(
-                STATS_TOPIC,
-                "json",
-                foxglove::Schema::new(messages::STATS_SCHEMA, "jsonschema", Stats::schema_bytes()),
-            )?,
-            events: server.channel(EVENTS_TOPIC, "protobuf", messages::log_schema()?)?,
+            particles: server.channel(PARTICLES_TOPIC)?,
+            bbox: server.channel(BOX_TOPIC)?,
+            stats: server.channel(STATS_TOPIC)?,
+            events: server.channel(EVENTS_TOPIC)?,
         });
         if options.wait {
             eprintln!(
