@@ -351,8 +351,9 @@ fn a_large_cloud_shows_a_subset_and_says_so() {
 fn a_client_that_stops_reading_never_holds_the_run_up() {
     let dir = tempfile::tempdir().unwrap();
     let port = free_port();
-    // Every step a frame (1000 frames/s, more than the run's steps), so that the unread
-    // data (≈ 30 kB a frame) overflows the socket buffers many times.
+    // As many frames as the time budget lets through (1000 frames/s asked; 300 bodies
+    // cost well under a millisecond a frame), so that the unread data (≈ 30 kB a frame)
+    // overflows the socket buffers many times.
     let mut child = run_in(
         dir.path(),
         &[
