@@ -350,20 +350,34 @@ fn a_large_cloud_shows_a_subset_and_says_so() {
 #[test]
 fn a_client_that_stops_reading_never_holds_the_run_up() {
     let dir = tempfile::tempdir().unwrap();
+    // 10 000 bodies that bounce and never merge: every frame draws all of them (≈ 1.3 MB),
+    // and the run lasts seconds, so the unread frames (as many as the time budget lets
+    // through, about one a second) exceed what the two sockets buffer (≈ 4 MB on Linux's
+    // defaults) and pile up in the server's queue for the client.
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/scenes/peer_bounce_10000.json"),
+    )
+    .unwrap();
+    let mut v: Value = serde_json::from_str(&text).unwrap();
+    v["time"]["end"] = json!(0.003);
+    let scene = dir.path().join("bounce.json");
+    std::fs::write(&scene, v.to_string()).unwrap();
     let port = free_port();
-    // As many frames as the time budget lets through (1000 frames/s asked; 300 bodies
-    // cost well under a millisecond a frame), so that the unread data (≈ 30 kB a frame)
-    // overflows the socket buffers many times.
-    let mut child = run_in(
-        dir.path(),
-        &[
-            "--live",
-            &format!("127.0.0.1:{port}"),
-            "--live-wait",
-            "--live-rate",
-            "1000",
-        ],
-    );
+    let mut child = Command::new(BIN)
+        .current_dir(dir.path())
+        .args([
+            "run",
+            scene.to_str().unwrap(),
+            "-q",
+            "--summary",
+            "summary.json",
+        ])
+        .args(["--live", &format!("127.0.0.1:{port}"), "--live-wait"])
+        .args(["--live-rate", "1000", "--live-bodies", "10000"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
     let mut ws = connect(port, &mut child);
     let channels = advertised(&mut ws, &["/particles", "/stats"]);
     subscribe(&mut ws, &channels, &["/particles", "/stats"]);
