@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 mod clamp_watch;
 mod inverse;
+mod live;
 mod progress;
 mod ranks;
 mod signals;
@@ -141,6 +142,8 @@ pub struct RunArgs {
     /// No progress bar and no end-of-run report (warnings still go to stderr).
     #[arg(long, short)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub live: live::LiveArgs,
 }
 
 /// Parse arguments and run the chosen command (under `mpirun`, rank 0 runs it and the
@@ -303,6 +306,7 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         .clone()
         .or_else(|| scenario.output.mcap.clone().map(PathBuf::from));
 
+    let live = live::bind_run(&args.live)?;
     let mut sim = table_paths
         .simulation(&scenario)
         .context("setting up the scene")?;
@@ -315,12 +319,14 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     // Created after the signal handlers: once the file exists, a stop signal finalises it.
     let mut recorder = match &mcap_path {
         Some(path) => {
-            let command_line = std::env::args().collect::<Vec<_>>().join(" ");
+            let command_line = live::recorded_command_line(std::env::args());
             Some(agglo::record::Recorder::create(path, &sim, &command_line)?)
         }
         None => None,
     };
     let mut tables = agglo::output::RunTables::open(&table_paths, &scenario, &sim)?;
+    let beside = mcap_path.as_deref().or(summary_path.as_deref());
+    let mut live = live::start_run(live, &sim, &scenario, beside, &stop.flag())?;
     let mut clamp_watch = clamping_floor(&scenario).map(|dt_min| (ClampWatch::new(0, 0), dt_min));
     let mut record_error: Option<anyhow::Error> = None;
     let show_progress = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
@@ -344,6 +350,9 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
                     None => eprintln!("{warning}"),
                 }
             }
+        }
+        if let Some(l) = live.as_mut() {
+            l.observe(s);
         }
         if let Some(r) = recorder.as_mut()
             && let Err(e) = r.observe(s)
@@ -388,6 +397,9 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
                 record_error.get_or_insert(e);
             }
         }
+    }
+    if let Some(l) = live.take() {
+        l.finish(&sim, &outcome);
     }
     // Write what we have even when the run failed: nothing is lost.
     if let Some(t) = tables.take() {

@@ -28,6 +28,7 @@ pub mod charts;
 pub mod cloud_file;
 pub mod farm;
 pub mod inverse;
+pub mod live;
 pub mod output;
 pub mod record;
 pub mod scenario;

@@ -36,6 +36,8 @@ pub struct OptimizeArgs {
     /// seconds, used): where the time goes, and what a cluster would make of it.
     #[arg(long, value_name = "FILE")]
     pub sample_times: Option<PathBuf>,
+    #[command(flatten)]
+    pub live: super::live::LiveInverseArgs,
 }
 
 #[derive(clap::Args, Debug)]
@@ -80,6 +82,7 @@ pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result
     let problem = load(&args.problem)?;
     let ga = &problem.spec.ga;
     let cancel = interrupt_flag();
+    let live = super::live::start_inverse(&args.live, &problem, &args.out, &cancel)?;
     let show = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
     let bar = show.then(|| {
         let bar = ProgressBar::new(0);
@@ -98,6 +101,9 @@ pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result
     let best = std::sync::Mutex::new((f64::NAN, f64::NAN));
     let generations = ga.generations;
     let on_event = |e: Event| {
+        if let Some(live) = &live {
+            live.on_event(&e);
+        }
         let Some(bar) = &bar else { return };
         match e {
             Event::GenerationStarted {
@@ -144,6 +150,7 @@ pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result
                     eta
                 ));
             }
+            Event::GenerationState(_) => {}
         }
     };
     let times_csv = std::sync::Mutex::new(String::from("generation,string,sample,seconds,used\n"));
@@ -164,6 +171,9 @@ pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result
         sample_times: args.sample_times.is_some().then_some(&log_times as _),
     };
     let result = inverse::optimize(&problem, &args.out, &options);
+    if let Some(live) = &live {
+        live.finish();
+    }
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }

@@ -58,6 +58,9 @@ pub enum Event<'a> {
     StringDone { generation: usize, samples: u32 },
     /// A generation finished.
     GenerationDone(&'a GenerationRow),
+    /// The GA's state after that generation (right after [`Event::GenerationDone`]; for
+    /// live views, which show the best string's genes).
+    GenerationState(&'a GaState),
     /// The closing check starts: `strings` strings of `samples` samples each.
     CheckStarted { strings: usize, samples: u32 },
 }
@@ -164,6 +167,7 @@ pub fn optimize(
         checkpoint::Checkpoint::new(problem, &state).save(dir)?;
         output::write_tables(dir, problem, &state)?;
         progress(Event::GenerationDone(&row));
+        progress(Event::GenerationState(&state));
         ran += 1;
     }
     let check = &problem.spec.reevaluate;

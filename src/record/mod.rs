@@ -31,6 +31,7 @@
 
 pub mod inspect;
 pub mod layout;
+pub mod messages;
 mod stats;
 pub mod writer;
 

@@ -18,33 +18,24 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use foxglove::Encode;
-use foxglove::schemas::{
-    Color, LinePrimitive, Log, Point3, Pose, Quaternion, SceneEntity, SceneEntityDeletion,
-    SceneUpdate, SpherePrimitive, Timestamp, Vector3, line_primitive, log, scene_entity_deletion,
-};
+use foxglove::schemas::{SceneEntity, SceneEntityDeletion, SceneUpdate, Timestamp, log};
 use mcap::records::{MessageHeader, Metadata};
 
+use super::messages::{self, Warnings};
 use super::{
-    BOX_HALF_WIDTH_KEY, BOX_TOPIC, ColourScale, EVENTS_TOPIC, FRAME_ID, PARTICLES_TOPIC,
-    PIPELINE_KEY, RESULT_METADATA, RUN_METADATA, SCENARIO_ATTACHMENT, STATS_TOPIC, Sampling, Stats,
+    BOX_HALF_WIDTH_KEY, BOX_TOPIC, ColourScale, EVENTS_TOPIC, PARTICLES_TOPIC, PIPELINE_KEY,
+    RESULT_METADATA, RUN_METADATA, SCENARIO_ATTACHMENT, STATS_TOPIC, Sampling, Stats,
 };
 use crate::components::BodyState;
 use crate::error::SimError;
 use crate::observables::Summary;
-use crate::resources::{BoxGeometry, Counters};
+use crate::resources::BoxGeometry;
 use crate::scenario::Scenario;
 use crate::schedule::Simulation;
 
 /// Target uncompressed chunk size [bytes]: about 8 snapshots of 1000 bodies, so a
 /// killed run loses at most a few snapshots.
 pub const CHUNK_SIZE: u64 = 1 << 20;
-
-/// Name used in `foxglove.Log` messages.
-const LOG_NAME: &str = "agglo";
-
-/// Invariant-violation descriptions copied into `/events` at most (the engine keeps
-/// the first few itself; the counts keep coming in the aggregated warnings).
-const MAX_VIOLATION_EVENTS: usize = 20;
 
 /// Channel ids.
 #[derive(Debug, Clone, Copy)]
@@ -68,17 +59,6 @@ pub struct RecordingReport {
     pub bytes: u64,
 }
 
-/// Counter increments since the last snapshot, reported there as one warning each.
-#[derive(Debug, Clone, Copy, Default)]
-struct Pending {
-    since: f64,
-    fallbacks: u64,
-    unconverged: u64,
-    clamped_steps: u64,
-    overlap_violations: u64,
-    invariant_violations: u64,
-}
-
 /// Records one run. See the module docs.
 pub struct Recorder {
     writer: mcap::Writer<BufWriter<File>>,
@@ -92,11 +72,9 @@ pub struct Recorder {
     last_step: u64,
     /// Ids shown by the last snapshot, sorted.
     shown: Vec<u64>,
-    counters: Counters,
     /// Kinetic energy of the first snapshot [J] (`/stats.kinetic_energy_over_initial`).
     initial_kinetic_energy: Option<f64>,
-    pending: Pending,
-    violations_reported: usize,
+    warnings: Warnings,
     report: RecordingReport,
     buf: Vec<u8>,
 }
@@ -179,11 +157,12 @@ impl Recorder {
         })?;
 
         let no_meta = BTreeMap::new();
-        let scene = SceneUpdate::get_schema().context("foxglove.SceneUpdate schema")?;
+        let scene = messages::scene_schema()?;
         let scene_id = writer.add_schema(&scene.name, &scene.encoding, &scene.data)?;
-        let log_schema = Log::get_schema().context("foxglove.Log schema")?;
+        let log_schema = messages::log_schema()?;
         let log_id = writer.add_schema(&log_schema.name, &log_schema.encoding, &log_schema.data)?;
-        let stats_id = writer.add_schema("agglo.Stats", "jsonschema", &Stats::schema_bytes())?;
+        let stats_id =
+            writer.add_schema(messages::STATS_SCHEMA, "jsonschema", &Stats::schema_bytes())?;
         let channels = Channels {
             particles: writer.add_channel(scene_id, PARTICLES_TOPIC, "protobuf", &no_meta)?,
             bbox: writer.add_channel(scene_id, BOX_TOPIC, "protobuf", &no_meta)?,
@@ -202,13 +181,8 @@ impl Recorder {
             last_time: clock.time,
             last_step: clock.step,
             shown: Vec::new(),
-            counters: sim.counters(),
             initial_kinetic_energy: None,
-            pending: Pending {
-                since: clock.time,
-                ..Default::default()
-            },
-            violations_reported: 0,
+            warnings: Warnings::new(sim),
             report: RecordingReport::default(),
             buf: Vec::new(),
         };
@@ -216,14 +190,7 @@ impl Recorder {
         recorder.event(
             clock.time,
             log::Level::Info,
-            format!(
-                "run started: scenario {} (seed {}), T = {:e} s, {} bodies; agglo {}",
-                scenario.name,
-                scenario.seed,
-                scenario.time.end,
-                scenario.cloud.count,
-                env!("CARGO_PKG_VERSION")
-            ),
+            messages::start_message(scenario),
         )?;
         recorder.snapshot(sim)?;
         Ok(recorder)
@@ -258,20 +225,7 @@ impl Recorder {
         } else {
             self.flush_pending(clock.time)?;
         }
-        let (status, level, message) = match outcome {
-            Ok(()) => (
-                "finished",
-                log::Level::Info,
-                format!(
-                    "run finished: t = {:e} s in {} steps",
-                    clock.time, clock.step
-                ),
-            ),
-            Err(e @ SimError::Interrupted { .. }) => {
-                ("interrupted", log::Level::Error, e.to_string())
-            }
-            Err(e) => ("failed", log::Level::Error, e.to_string()),
-        };
+        let (status, level, message) = messages::outcome_message(sim, outcome);
         self.event(clock.time, level, message.clone())?;
         let mut meta = BTreeMap::new();
         meta.insert("status".into(), status.to_string());
@@ -319,24 +273,11 @@ impl Recorder {
     }
 
     fn stamp(&self, t: f64) -> Timestamp {
-        let ns = self.sampling.log_time(t);
-        // Timestamps hold u32 seconds: saturate beyond 136 years of playback.
-        Timestamp::new_checked(
-            u32::try_from(ns / 1_000_000_000).unwrap_or(u32::MAX),
-            (ns % 1_000_000_000) as u32,
-        )
-        .unwrap_or(Timestamp::MAX)
+        messages::timestamp(self.sampling.log_time(t))
     }
 
     fn event(&mut self, t: f64, level: log::Level, message: String) -> anyhow::Result<()> {
-        let msg = Log {
-            timestamp: Some(self.stamp(t)),
-            level: level as i32,
-            message,
-            name: LOG_NAME.into(),
-            file: String::new(),
-            line: 0,
-        };
+        let msg = messages::log_message(self.stamp(t), level, message);
         self.report.events += 1;
         self.write_proto(self.channels.events, t, &msg)
     }
@@ -344,133 +285,25 @@ impl Recorder {
     /// The periodic box [−D, D]³ as a line list of its 12 edges.
     fn write_box(&mut self, sim: &Simulation) -> anyhow::Result<()> {
         let d = sim.world().resource::<BoxGeometry>().half_width;
-        let corner = |i: usize| Point3 {
-            x: if i & 1 == 0 { -d } else { d },
-            y: if i & 2 == 0 { -d } else { d },
-            z: if i & 4 == 0 { -d } else { d },
-        };
-        // Edges join corners differing in one bit.
-        let mut points = Vec::with_capacity(24);
-        for i in 0..8usize {
-            for bit in [1usize, 2, 4] {
-                if i & bit == 0 {
-                    points.push(corner(i));
-                    points.push(corner(i | bit));
-                }
-            }
-        }
         let t = sim.clock().time;
-        let update = SceneUpdate {
-            deletions: Vec::new(),
-            entities: vec![SceneEntity {
-                timestamp: Some(self.stamp(t)),
-                frame_id: FRAME_ID.into(),
-                id: "box".into(),
-                lines: vec![LinePrimitive {
-                    r#type: line_primitive::Type::LineList as i32,
-                    pose: Some(identity_pose(0.0, 0.0, 0.0)),
-                    // Thickness in pixels (scale invariant): visible at any zoom.
-                    thickness: 2.0,
-                    scale_invariant: true,
-                    points,
-                    color: Some(Color {
-                        r: 0.8,
-                        g: 0.8,
-                        b: 0.8,
-                        a: 1.0,
-                    }),
-                    colors: Vec::new(),
-                    indices: Vec::new(),
-                }],
-                ..Default::default()
-            }],
-        };
+        let update = messages::box_update(d, self.stamp(t));
         self.write_proto(self.channels.bbox, t, &update)
     }
 
     /// Count new warnings; copy new invariant-violation descriptions to `/events` at once.
     fn note_counters(&mut self, sim: &Simulation) -> anyhow::Result<()> {
-        let now = sim.counters();
-        let before = self.counters;
-        if now == before {
-            return Ok(());
-        }
-        let p = &mut self.pending;
-        p.fallbacks += now.fallbacks.saturating_sub(before.fallbacks);
-        p.unconverged += now.unconverged.saturating_sub(before.unconverged);
-        p.clamped_steps += now.clamped_steps.saturating_sub(before.clamped_steps);
-        p.overlap_violations += now
-            .overlap_violations
-            .saturating_sub(before.overlap_violations);
-        p.invariant_violations += now
-            .invariant_violations
-            .saturating_sub(before.invariant_violations);
-        self.counters = now;
-        if now.invariant_violations > before.invariant_violations
-            && self.violations_reported < MAX_VIOLATION_EVENTS
-        {
-            let report = sim.invariants();
-            let t = sim.clock().time;
-            let new: Vec<String> = report
-                .violations
-                .iter()
-                .skip(self.violations_reported)
-                .take(MAX_VIOLATION_EVENTS - self.violations_reported)
-                .cloned()
-                .collect();
-            for v in new {
-                self.violations_reported += 1;
-                self.event(t, log::Level::Warning, format!("invariant violation: {v}"))?;
-            }
+        let t = sim.clock().time;
+        for line in self.warnings.note(sim) {
+            self.event(t, log::Level::Warning, line)?;
         }
         Ok(())
     }
 
     /// One aggregated warning per kind of counter that grew since the last snapshot.
     fn flush_pending(&mut self, t: f64) -> anyhow::Result<()> {
-        let p = self.pending;
-        let c = self.counters;
-        let since = p.since;
-        let lines = [
-            (
-                p.fallbacks,
-                "impacts needed the bracketed fallback solver",
-                c.fallbacks,
-            ),
-            (
-                p.unconverged,
-                "impacts did not converge (plain solver, last iterate used)",
-                c.unconverged,
-            ),
-            (
-                p.clamped_steps,
-                "steps clamped at dt_min although a contact was due sooner",
-                c.clamped_steps,
-            ),
-            (
-                p.overlap_violations,
-                "approaching pairs found overlapping (missed contacts)",
-                c.overlap_violations,
-            ),
-            (
-                p.invariant_violations,
-                "invariant checks failed",
-                c.invariant_violations,
-            ),
-        ];
-        for (n, what, total) in lines {
-            if n > 0 {
-                self.event(
-                    t,
-                    log::Level::Warning,
-                    format!("{n} {what} since t = {since:e} s ({total} in total)"),
-                )?;
-            }
+        for line in self.warnings.flush(t) {
+            self.event(t, log::Level::Warning, line)?;
         }
-        self.pending = Pending {
-            since: t,
-            ..Default::default()
-        };
         Ok(())
     }
 
@@ -483,43 +316,15 @@ impl Recorder {
 
         // Bodies with a non-finite centre or size cannot be drawn: leave them out (a
         // NonFinite error reports them) and say so.
-        let (drawable, skipped): (Vec<&BodyState>, Vec<&BodyState>) = bodies
-            .iter()
-            .partition(|b| b.position.is_finite() && b.radius.is_finite() && b.radius > 0.0);
+        let (drawable, skipped): (Vec<&BodyState>, Vec<&BodyState>) =
+            bodies.iter().partition(|b| messages::drawable(b));
         let ids: Vec<u64> = drawable.iter().map(|b| b.id).collect();
         let deletions: Vec<SceneEntityDeletion> = sorted_difference(&self.shown, &ids)
-            .map(|id| SceneEntityDeletion {
-                timestamp: Some(stamp),
-                r#type: scene_entity_deletion::Type::MatchingId as i32,
-                id: id.to_string(),
-            })
+            .map(|id| messages::deletion_of(id, stamp))
             .collect();
         let entities: Vec<SceneEntity> = drawable
             .iter()
-            .map(|b| {
-                let [r, g, bl] = self.colours.rgb(b.temperature);
-                let diameter = 2.0 * b.radius;
-                SceneEntity {
-                    timestamp: Some(stamp),
-                    frame_id: FRAME_ID.into(),
-                    id: b.id.to_string(),
-                    spheres: vec![SpherePrimitive {
-                        pose: Some(identity_pose(b.position.x, b.position.y, b.position.z)),
-                        size: Some(Vector3 {
-                            x: diameter,
-                            y: diameter,
-                            z: diameter,
-                        }),
-                        color: Some(Color {
-                            r,
-                            g,
-                            b: bl,
-                            a: 1.0,
-                        }),
-                    }],
-                    ..Default::default()
-                }
-            })
+            .map(|b| messages::body_entity(b, &self.colours, stamp))
             .collect();
         self.report.deletions += deletions.len() as u64;
         let update = SceneUpdate {
@@ -541,16 +346,10 @@ impl Recorder {
         self.writer.write_to_known_channel(&header, &self.buf)?;
 
         if !skipped.is_empty() {
-            let list: Vec<String> = skipped.iter().take(10).map(|b| b.id.to_string()).collect();
             self.event(
                 t,
                 log::Level::Error,
-                format!(
-                    "{} bodies with a non-finite position or size left out of /particles (ids {}{})",
-                    skipped.len(),
-                    list.join(", "),
-                    if skipped.len() > 10 { ", …" } else { "" }
-                ),
+                messages::skipped_bodies_message(&skipped),
             )?;
         }
         self.flush_pending(t)?;
@@ -558,18 +357,6 @@ impl Recorder {
         self.last_step = clock.step;
         self.report.snapshots += 1;
         Ok(())
-    }
-}
-
-fn identity_pose(x: f64, y: f64, z: f64) -> Pose {
-    Pose {
-        position: Some(Vector3 { x, y, z }),
-        orientation: Some(Quaternion {
-            x: 0.0,
-            y: 0.0,
-            z: 0.0,
-            w: 1.0,
-        }),
     }
 }
 

@@ -20,6 +20,7 @@ mod hooks;
 mod initial_data;
 mod inverse;
 mod layout;
+mod live;
 mod outcome;
 mod outputs;
 mod pipeline_from_outside;

@@ -1,0 +1,176 @@
+//! `--live` on `agglo run` and `agglo optimize`: the flags, and thin glue over
+//! [`agglo::live`] (bind before the work starts, print the link, write the layout).
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+use anyhow::Context;
+
+use agglo::live::inverse::LiveInverse;
+use agglo::live::run::LiveRun;
+use agglo::live::{DEFAULT_ADDR, LiveOptions, Server, check_options, parse_addr};
+use agglo::prelude::*;
+
+/// The live flags of `agglo run`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct LiveArgs {
+    /// Serve the run live over the Foxglove WebSocket protocol on ADDR (HOST:PORT,
+    /// default 127.0.0.1:8765): in Foxglove, open a connection → Foxglove WebSocket →
+    /// ws://ADDR. Same channels as a recording (--out); the results are unchanged.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_ADDR)]
+    pub live: Option<String>,
+    /// With --live: hold the start until a client subscribes.
+    #[arg(long, requires = "live")]
+    pub live_wait: bool,
+    /// With --live: frames per second of wall-clock time, at most (0 < HZ ≤ 1000).
+    #[arg(long, value_name = "HZ", default_value_t = 10.0)]
+    pub live_rate: f64,
+    /// With --live: bodies drawn per frame, about, at most (a deterministic subset by
+    /// id when the cloud is larger; /stats always covers every body).
+    #[arg(long, value_name = "N", default_value_t = 10_000)]
+    pub live_bodies: usize,
+}
+
+/// The live flags of `agglo optimize`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct LiveInverseArgs {
+    /// Serve each generation live over the Foxglove WebSocket protocol on ADDR
+    /// (HOST:PORT, default 127.0.0.1:8765); the layout is written as DIR/live.layout.json.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_ADDR)]
+    pub live: Option<String>,
+    /// With --live: hold the start until a client subscribes.
+    #[arg(long, requires = "live")]
+    pub live_wait: bool,
+}
+
+/// Flags of this module and whether each takes a value (the recording's command line
+/// leaves them out: they do not change the run, so a run with and without them records
+/// the same bytes).
+const LIVE_FLAGS: [(&str, bool); 4] = [
+    ("--live", false),
+    ("--live-wait", false),
+    ("--live-rate", true),
+    ("--live-bodies", true),
+];
+
+/// The command line as a recording keeps it: `args` without the live flags.
+pub fn recorded_command_line(args: impl IntoIterator<Item = String>) -> String {
+    let mut kept = Vec::new();
+    let mut args = args.into_iter().peekable();
+    while let Some(arg) = args.next() {
+        let name = arg.split('=').next().unwrap_or("");
+        let Some(&(flag, takes_value)) = LIVE_FLAGS.iter().find(|(f, _)| *f == name) else {
+            kept.push(arg);
+            continue;
+        };
+        if arg.contains('=') {
+            continue;
+        }
+        // `--live` takes an optional value: clap gives it the next word unless that
+        // word is a flag.
+        let optional = flag == "--live";
+        if takes_value || (optional && args.peek().is_some_and(|a| !a.starts_with('-'))) {
+            args.next();
+        }
+    }
+    kept.join(" ")
+}
+
+/// Bind the live server of `agglo run`, if asked: before the scene is built, so that a
+/// bad address is refused before any work.
+pub fn bind_run(args: &LiveArgs) -> anyhow::Result<Option<(Server, LiveOptions)>> {
+    let Some(text) = &args.live else {
+        return Ok(None);
+    };
+    let options = LiveOptions {
+        addr: parse_addr(text)?,
+        wait: args.live_wait,
+        rate_hz: args.live_rate,
+        max_bodies: args.live_bodies,
+    };
+    check_options(&options)?;
+    let server = Server::bind(options.addr, "agglo run", agglo::live::run::topics()?)?;
+    Ok(Some((server, options)))
+}
+
+/// Start serving `sim` (bound by [`bind_run`]): print the address and the link, write the
+/// fitted layout (beside `beside`, a recording or summary, else in the temporary
+/// directory), wait for a client with `--live-wait`.
+pub fn start_run(
+    bound: Option<(Server, LiveOptions)>,
+    sim: &Simulation,
+    scenario: &Scenario,
+    beside: Option<&Path>,
+    stop: &AtomicBool,
+) -> anyhow::Result<Option<LiveRun>> {
+    let Some((server, options)) = bound else {
+        return Ok(None);
+    };
+    let layout = match beside {
+        Some(p) => agglo::record::layout::layout_path_for(p),
+        None => std::env::temp_dir().join(format!("agglo-live-{}.layout.json", scenario.name)),
+    };
+    agglo::record::layout::write_fitted_layout(&layout, scenario.domain.half_width)?;
+    announce(&server, &layout);
+    Ok(Some(LiveRun::start(server, &options, sim, stop)?))
+}
+
+/// Bind and start the live server of `agglo optimize`, if asked; the layout goes to
+/// `out/live.layout.json`.
+pub fn start_inverse(
+    args: &LiveInverseArgs,
+    problem: &agglo::inverse::InverseProblem,
+    out: &Path,
+    stop: &AtomicBool,
+) -> anyhow::Result<Option<LiveInverse>> {
+    let Some(text) = &args.live else {
+        return Ok(None);
+    };
+    let topics = agglo::live::inverse::topics(problem)?;
+    let server = Server::bind(parse_addr(text)?, "agglo optimize", topics)?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let layout: PathBuf = out.join("live.layout.json");
+    let text = serde_json::to_string_pretty(&agglo::live::inverse::layout(problem))?;
+    std::fs::write(&layout, text + "\n")
+        .with_context(|| format!("writing Foxglove layout {}", layout.display()))?;
+    announce(&server, &layout);
+    Ok(Some(LiveInverse::start(
+        server,
+        problem,
+        args.live_wait,
+        stop,
+    )?))
+}
+
+fn announce(server: &Server, layout: &Path) {
+    eprintln!(
+        "live: serving on {} — in Foxglove open a Foxglove WebSocket connection to it ({}); \
+         layout: {}",
+        server.url(),
+        server.app_link(),
+        layout.display()
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::recorded_command_line;
+
+    fn line(args: &str) -> String {
+        recorded_command_line(args.split(' ').map(String::from))
+    }
+
+    #[test]
+    fn live_flags_are_left_out_of_the_recorded_command_line() {
+        let want = "agglo run s.json --out run.mcap -q";
+        for with in [
+            "agglo run s.json --live --out run.mcap -q",
+            "agglo run s.json --live 127.0.0.1:9 --out run.mcap -q",
+            "agglo run s.json --live=127.0.0.1:9 --live-wait --out run.mcap -q",
+            "agglo run s.json --out run.mcap --live-rate 5 --live-bodies=10 -q --live",
+        ] {
+            assert_eq!(line(with), want, "{with}");
+        }
+        assert_eq!(line(want), want);
+    }
+}

@@ -1,0 +1,283 @@
+//! Watching a run while it runs: `agglo run --live` and `agglo optimize --live` serve
+//! their progress over the Foxglove WebSocket protocol (the `foxglove` crate's
+//! `live_visualization` server), so the Foxglove app can connect to
+//! `ws://ADDR` as a data source.
+//!
+//! - [`Server`]: the address is checked and bound before any work starts
+//!   ([`Server::bind`]); an address that cannot be bound (in use, not an address, no
+//!   permission) is an error naming it.
+//! - [`run::LiveRun`]: a simulation, with the recording's channels, schemas and entity
+//!   layout (`/particles`, `/box`, `/stats`, `/events`; messages built by
+//!   [`crate::record::messages`]), so the fitted layout of a recording works live.
+//! - [`inverse::LiveInverse`]: the inverse problem, one `/generations` message per
+//!   generation (costs with their standard errors, the best string's genes normalised to
+//!   their ranges, samples per string).
+//!
+//! **Never in the way.** Frames are published on a wall-clock rate
+//! ([`LiveOptions::rate_hz`]), not per step: a publisher thread raises a flag when a
+//! frame is due and it is idle; the simulation thread, after a step, reads that flag
+//! (one relaxed atomic load), and only when it is set and a client is subscribed copies
+//! the bodies and the statistics. Selecting, encoding and sending happen on the publisher
+//! thread. The frames also keep to a time budget ([`run::TIME_BUDGET`], 2 % of wall
+//! time): after each, the next waits at least its cost (capture + publishing) / 2 %, so
+//! a cloud of 1e6 bodies gets fewer frames per second rather than a slower run. Each client has a small queue ([`CLIENT_BACKLOG`] messages) whose oldest
+//! messages are dropped when it fills, so a stalled client costs memory bounded by a few
+//! frames, and a client that disconnects is simply gone. Nothing the live view does
+//! changes the run: outputs and recordings are the same bytes as without it.
+//!
+//! **Large clouds.** `/particles` shows a deterministic subset of at most about
+//! [`LiveOptions::max_bodies`] bodies: those whose id hashes (splitmix64) below 2⁶⁴/2ᵏ,
+//! with the smallest k that fits. The subsets are nested, so as bodies merge and k falls
+//! the shown bodies stay shown. The scene says so (a text entity in `/particles`), and
+//! `/stats` is always computed over every body.
+
+pub mod inverse;
+pub mod run;
+
+use std::net::{SocketAddr, ToSocketAddrs};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use anyhow::Context as _;
+use foxglove::{Context, FoxgloveError, PartialMetadata, RawChannel, Schema, WebSocketServer};
+
+/// Where `--live` serves when no address is given.
+pub const DEFAULT_ADDR: &str = "127.0.0.1:8765";
+
+/// Messages queued per client before the oldest are dropped: a few frames (a frame is a
+/// `/particles`, a `/box`, a `/stats` message and its events), so that a stalled client
+/// holds at most a few frames of memory (≈ 1 MB each at 10 000 bodies).
+pub const CLIENT_BACKLOG: usize = 32;
+
+/// How long the server stays up after the last frame for clients to receive it [s].
+const LINGER: Duration = Duration::from_millis(500);
+
+/// How to serve a run live.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LiveOptions {
+    /// The address to serve on.
+    pub addr: SocketAddr,
+    /// Hold the start until a client subscribes to a channel.
+    pub wait: bool,
+    /// Frames per second of wall-clock time, at most (> 0).
+    pub rate_hz: f64,
+    /// Bodies drawn in `/particles` at most, about (≥ 1); statistics cover all.
+    pub max_bodies: usize,
+}
+
+/// Parse `--live ADDR`: `IP:PORT` or `HOST:PORT` (resolved now). The error names the text.
+pub fn parse_addr(text: &str) -> anyhow::Result<SocketAddr> {
+    if let Ok(addr) = text.parse::<SocketAddr>() {
+        return Ok(addr);
+    }
+    let hint = "give HOST:PORT, e.g. --live 127.0.0.1:8765 (put --live after the scenario \
+                file, or give the address)";
+    let mut found = text
+        .to_socket_addrs()
+        .map_err(|e| anyhow::anyhow!("--live {text:?}: not an address ({e}); {hint}"))?;
+    found
+        .next()
+        .with_context(|| format!("--live {text:?}: the name resolves to no address; {hint}"))
+}
+
+/// Check the live options (the rate and the body count, with their allowed ranges).
+pub fn check_options(o: &LiveOptions) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        o.rate_hz.is_finite() && o.rate_hz > 0.0 && o.rate_hz <= 1000.0,
+        "--live-rate: allowed 0 < rate ≤ 1000 frames per second (got {})",
+        o.rate_hz
+    );
+    anyhow::ensure!(
+        o.max_bodies >= 1,
+        "--live-bodies: allowed ≥ 1 (got {})",
+        o.max_bodies
+    );
+    Ok(())
+}
+
+/// A bound WebSocket server with its own Foxglove context (its channels reach only it).
+pub struct Server {
+    /// Kept alive with the server: dropping the context would close the channels.
+    _context: Arc<Context>,
+    channels: Vec<Arc<RawChannel>>,
+    handle: Option<foxglove::WebSocketServerHandle>,
+    addr: SocketAddr,
+}
+
+/// A channel to create: topic, message encoding, schema.
+pub type Topic = (&'static str, &'static str, Schema);
+
+impl Server {
+    /// Create the channels of `topics`, then bind `addr` and start serving them. Errors
+    /// name the address and say why: in use, not an address of this machine, no
+    /// permission.
+    ///
+    /// The channels exist before the first client can connect: a channel created while a
+    /// client is connected is advertised to it before the server can route its
+    /// subscription ("Unknown channel ID" from foxglove 0.30), and that client would
+    /// never receive it.
+    pub fn bind(addr: SocketAddr, name: &str, topics: Vec<Topic>) -> anyhow::Result<Self> {
+        let context = Context::new();
+        let channels = topics
+            .into_iter()
+            .map(|(topic, encoding, schema)| {
+                context
+                    .channel_builder(topic)
+                    .message_encoding(encoding)
+                    .schema(schema)
+                    .build_raw()
+                    .with_context(|| format!("creating live channel {topic}"))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let host = match addr {
+            SocketAddr::V4(a) => a.ip().to_string(),
+            SocketAddr::V6(a) => format!("[{}]", a.ip()),
+        };
+        let handle = WebSocketServer::new()
+            .name(name)
+            .bind(host, addr.port())
+            .context(&context)
+            .message_backlog_size(CLIENT_BACKLOG)
+            .start_blocking()
+            .map_err(|e| bind_error(addr, e))?;
+        let bound = SocketAddr::new(addr.ip(), handle.port());
+        Ok(Self {
+            _context: context,
+            channels,
+            handle: Some(handle),
+            addr: bound,
+        })
+    }
+
+    /// The address served (with the port chosen when 0 was asked for).
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// The WebSocket URL of the server.
+    pub fn url(&self) -> String {
+        format!("ws://{}", self.addr)
+    }
+
+    /// The link that opens the server in the Foxglove web app.
+    pub fn app_link(&self) -> String {
+        format!(
+            "https://app.foxglove.dev/?ds=foxglove-websocket&ds.url={}",
+            self.url()
+        )
+    }
+
+    /// The channel of `topic` (created by [`Server::bind`]).
+    pub fn channel(&self, topic: &str) -> anyhow::Result<Arc<RawChannel>> {
+        self.channels
+            .iter()
+            .find(|c| c.topic() == topic)
+            .cloned()
+            .with_context(|| format!("the live server has no channel {topic}"))
+    }
+
+    /// Clients connected now.
+    pub fn clients(&self) -> usize {
+        self.handle.as_ref().map_or(0, |h| h.client_count())
+    }
+
+    /// Block until one of `channels` has a subscriber, polling `stop` (Ctrl-C): returns
+    /// false if a stop was asked for first.
+    pub fn wait_for_subscriber(&self, channels: &[&Arc<RawChannel>], stop: &AtomicBool) -> bool {
+        while !channels.iter().any(|c| c.has_sinks()) {
+            if stop.load(Ordering::SeqCst) {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        true
+    }
+
+    /// Give connected clients [`LINGER`] to receive the last messages, then stop.
+    pub fn close(mut self) {
+        if self.clients() > 0 {
+            std::thread::sleep(LINGER);
+        }
+        if let Some(handle) = self.handle.take() {
+            // Closing frames go out in the background (dropping the shutdown handle
+            // instead would abort the client tasks at once); the process exit ends them.
+            handle.stop().detach_all();
+        }
+    }
+}
+
+/// The error of an address that cannot be bound, naming it and saying what to do.
+fn bind_error(addr: SocketAddr, e: FoxgloveError) -> anyhow::Error {
+    let FoxgloveError::Bind(io) = &e else {
+        return anyhow::anyhow!("--live {addr}: cannot start the server: {e}");
+    };
+    let why = match io.kind() {
+        std::io::ErrorKind::AddrInUse => {
+            "the address is already in use (another `agglo --live`? pick another port)"
+        }
+        std::io::ErrorKind::AddrNotAvailable => {
+            "not an address of this machine (use 127.0.0.1, or 0.0.0.0 for every interface)"
+        }
+        std::io::ErrorKind::PermissionDenied => {
+            "permission denied (ports below 1024 need privileges: use a port ≥ 1024)"
+        }
+        _ => "cannot bind",
+    };
+    anyhow::anyhow!("--live {addr}: {why} ({io})")
+}
+
+/// Log `data` on `channel` at log time `ns` [ns] (a no-op without subscribers).
+fn publish(channel: &RawChannel, ns: u64, data: &[u8]) {
+    channel.log_with_meta(data, PartialMetadata { log_time: Some(ns) });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn addresses_parse_or_are_refused_by_name() {
+        assert_eq!(
+            parse_addr("127.0.0.1:8765").unwrap(),
+            "127.0.0.1:8765".parse().unwrap()
+        );
+        assert_eq!(parse_addr("[::1]:9").unwrap().port(), 9);
+        for bad in [
+            "nonsense",
+            "127.0.0.1",
+            "scenarios/quick_demo.json",
+            "1.2.3.4:99999",
+        ] {
+            let e = parse_addr(bad).unwrap_err().to_string();
+            assert!(e.contains(bad) && e.contains("not an address"), "{e}");
+        }
+    }
+
+    #[test]
+    fn options_out_of_range_are_refused() {
+        let ok = LiveOptions {
+            addr: parse_addr(DEFAULT_ADDR).unwrap(),
+            wait: false,
+            rate_hz: 10.0,
+            max_bodies: 10_000,
+        };
+        assert!(check_options(&ok).is_ok());
+        for rate in [0.0, -1.0, f64::NAN, 1e4] {
+            let e = check_options(&LiveOptions {
+                rate_hz: rate,
+                ..ok.clone()
+            })
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("--live-rate"), "{e}");
+        }
+        let e = check_options(&LiveOptions {
+            max_bodies: 0,
+            ..ok
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--live-bodies"), "{e}");
+    }
+}
