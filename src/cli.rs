@@ -223,6 +223,11 @@ fn validate(path: &Path) -> anyhow::Result<()> {
     );
     let pipeline = s.pipeline().context("building the scene's pipeline")?;
     print!("{}", pipeline_text(&pipeline));
+    let memory = agglo::memory::MemoryEstimate::of(&s);
+    println!("{}", memory.describe());
+    if let Some(warning) = memory.check().map_err(anyhow::Error::msg)? {
+        eprintln!("{warning}");
+    }
     Ok(())
 }
 
@@ -306,6 +311,13 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         .clone()
         .or_else(|| scenario.output.mcap.clone().map(PathBuf::from));
 
+    // Before anything is allocated: does the scene fit in memory?
+    if let Some(warning) = agglo::memory::MemoryEstimate::of(&scenario)
+        .check()
+        .map_err(anyhow::Error::msg)?
+    {
+        eprintln!("{warning}");
+    }
     let live = live::bind_run(&args.live)?;
     let mut sim = table_paths
         .simulation(&scenario)

@@ -29,6 +29,7 @@ pub mod cloud_file;
 pub mod farm;
 pub mod inverse;
 pub mod live;
+pub mod memory;
 pub mod output;
 pub mod record;
 pub mod scenario;

@@ -225,10 +225,13 @@ impl Scenario {
         v.positive("box.half_width", self.domain.half_width);
 
         let c = &self.cloud;
-        if c.count == 0 || c.count > 10_000_000 {
+        // The upper limit is the machine's memory (crate::memory, checked by `run` and
+        // `validate` before anything is allocated), and the event core's 32-bit slots.
+        if c.count == 0 || c.count >= u32::MAX as usize {
             v.push(
                 "cloud.count",
-                "1 ≤ N ≤ 10 000 000 (left out only with cloud.bodies or cloud.from_file)",
+                "1 ≤ N < 2^32 and within the machine's memory (left out only with \
+                 cloud.bodies or cloud.from_file)",
                 c.count as f64,
             );
         }

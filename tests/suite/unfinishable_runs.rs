@@ -148,3 +148,33 @@ fn a_large_pair_is_resolved_through_the_image_it_is_due_in() {
         s.invariant_violations
     );
 }
+
+#[test]
+fn a_cloud_larger_than_the_machine_is_refused_before_anything_is_allocated() {
+    // 1e9 bodies need about 900 GB; the machines this runs on have tens of GB. Refused by
+    // the memory estimate (agglo::memory), not by a fixed cap, and at once.
+    let mut v = shipped("quick_demo.json");
+    v["cloud"]["count"] = json!(1_000_000_000u64);
+    let start = std::time::Instant::now();
+    assert_refused(
+        &v,
+        &["cloud.count", "1000000000 bodies need about", "available"],
+    );
+    assert!(
+        start.elapsed().as_secs_f64() < 30.0,
+        "refused before generating the cloud"
+    );
+}
+
+#[test]
+fn validate_prints_the_memory_estimate() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(dir.path(), &shipped("quick_demo.json"));
+    let out = agglo(&["validate"], &path);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("memory: about 16 MB for 300 bodies (900 B per body)"),
+        "{text}"
+    );
+}

@@ -1,0 +1,127 @@
+//! How much memory a scene needs, against what the machine has: the limit on the number
+//! of bodies comes from here, not from a fixed cap.
+//!
+//! The estimate is the measured peak resident memory per body of a run (release build,
+//! no recording: 832 B per body at N = 1e4 and 748 B at N = 1e5 on the merging peer
+//! clouds, `benches/peers/scenes/`), rounded up to [`BYTES_PER_BODY`] for the field's
+//! relaxation time and the sampled tables, plus [`BASE_BYTES`] for the process itself and
+//! the recording's buffers. It is compared with the memory the kernel says is available
+//! (`MemAvailable` in /proc/meminfo) before anything is allocated: `agglo run` refuses a
+//! scene that cannot fit and warns when it would take more than half; `agglo validate`
+//! prints the estimate and runs the same check.
+
+use crate::scenario::Scenario;
+
+/// Peak resident bytes per body of a run (measured; see the module docs) [B].
+pub const BYTES_PER_BODY: f64 = 900.0;
+
+/// Resident bytes of the process without bodies (5.7 MB measured for two bodies) plus
+/// the recording's chunk buffers (1 MiB uncompressed, compressed copy) [B].
+pub const BASE_BYTES: f64 = 16e6;
+
+/// What a scene is expected to need and what the machine has.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MemoryEstimate {
+    /// Bodies at t = 0.
+    pub bodies: usize,
+    /// Expected peak resident memory [B].
+    pub bytes: f64,
+    /// Memory available now [B] (None where the kernel does not say).
+    pub available: Option<f64>,
+}
+
+impl MemoryEstimate {
+    /// The estimate for `scenario` on this machine.
+    pub fn of(scenario: &Scenario) -> Self {
+        let bodies = scenario.cloud.count.max(scenario.cloud.bodies.len());
+        Self {
+            bodies,
+            bytes: BASE_BYTES + BYTES_PER_BODY * bodies as f64,
+            available: available_bytes(),
+        }
+    }
+
+    /// One line for `agglo validate`.
+    pub fn describe(&self) -> String {
+        match self.available {
+            Some(a) => format!(
+                "memory: about {:.0} MB for {} bodies ({:.0} B per body), {:.0} MB available",
+                self.bytes / 1e6,
+                self.bodies,
+                BYTES_PER_BODY,
+                a / 1e6
+            ),
+            None => format!(
+                "memory: about {:.0} MB for {} bodies ({:.0} B per body); available memory unknown",
+                self.bytes / 1e6,
+                self.bodies,
+                BYTES_PER_BODY
+            ),
+        }
+    }
+
+    /// An error naming `cloud.count` when the scene cannot fit; a warning when it would
+    /// take more than half of what is available.
+    pub fn check(&self) -> Result<Option<String>, String> {
+        let Some(available) = self.available else {
+            return Ok(None);
+        };
+        if self.bytes > available {
+            return Err(format!(
+                "cloud.count: {} bodies need about {:.1} GB ({:.0} B per body), but only {:.1} GB \
+                 of memory is available; allowed N ≤ {:.3e} on this machine now",
+                self.bodies,
+                self.bytes / 1e9,
+                BYTES_PER_BODY,
+                available / 1e9,
+                ((available - BASE_BYTES) / BYTES_PER_BODY).max(0.0).floor()
+            ));
+        }
+        Ok((self.bytes > 0.5 * available).then(|| {
+            format!(
+                "warning: {} bodies need about {:.1} GB, more than half of the {:.1} GB available",
+                self.bodies,
+                self.bytes / 1e9,
+                available / 1e9
+            )
+        }))
+    }
+}
+
+/// Memory available to a new process [B], from /proc/meminfo (Linux).
+pub fn available_bytes() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn estimate(bodies: usize, available: f64) -> MemoryEstimate {
+        MemoryEstimate {
+            bodies,
+            bytes: BASE_BYTES + BYTES_PER_BODY * bodies as f64,
+            available: Some(available),
+        }
+    }
+
+    #[test]
+    fn a_scene_that_fits_passes_and_one_that_does_not_names_the_field_and_the_limit() {
+        assert_eq!(estimate(1000, 1e9).check(), Ok(None));
+        let half = estimate(1_000_000, 1.5e9).check().unwrap();
+        assert!(half.unwrap().starts_with("warning"));
+        let e = estimate(100_000_000, 1e9).check().unwrap_err();
+        assert!(e.starts_with("cloud.count"), "{e}");
+        // (1e9 − 16e6) / 900 bodies fit.
+        assert!(e.contains("N ≤ 1.093e6"), "{e}");
+    }
+
+    #[test]
+    fn this_machine_reports_its_available_memory() {
+        let a = available_bytes().expect("Linux has MemAvailable");
+        assert!(a > 1e6, "{a}");
+    }
+}
