@@ -18,7 +18,7 @@ use crate::schedule::Simulation;
 
 use super::collisions::{self, CollisionLog};
 use super::sampling::{SampleSchedule, Sampler};
-use super::series::{SERIES_COLUMNS, series_row};
+use super::series::{Pending, SERIES_COLUMNS, series_row};
 use super::sizes::{self, SIZES_COLUMNS, SizeBins};
 use super::table::{Cell, Column, TableWriter, float, int};
 
@@ -185,7 +185,7 @@ impl RunTables {
         let t = sim.clock().time;
         let bodies = sim.bodies();
         if let Some(series) = &mut self.series {
-            let pending = pending_cooling(sim, &bodies);
+            let pending = pending_account(sim, &bodies);
             series
                 .row(&series_row(sim, &bodies, pending))
                 .context("writing the time series")?;
@@ -225,30 +225,40 @@ impl RunTables {
     }
 }
 
-/// Heat [J] the event core's bodies have lost by cooling since they were last brought
-/// up to date: Σ m C (θ_stored − θ_now), not yet in the ledger (it is booked when each
-/// body is next touched, and at the end of the run). 0 on the stepped core. `bodies` are
-/// the bodies at now, sorted by id.
-fn pending_cooling(sim: &Simulation, bodies: &[crate::components::BodyState]) -> f64 {
+/// What the event core's bodies have moved since they were last brought up to date and
+/// the ledger has not booked yet (it is booked when each body is next touched, and at
+/// the end of the run): the heat lost by cooling, Σ m C (θ_stored − θ_now), and in a
+/// field its work and impulse, Σ ½ m (|v_now|² − |v_stored|²) and Σ m (v_now − v_stored).
+/// Zero on the stepped core. `bodies` are the bodies at now, sorted by id.
+fn pending_account(sim: &Simulation, bodies: &[crate::components::BodyState]) -> Pending {
     let world = sim.world();
     if !world.resource::<LazyState>().0 {
-        return 0.0;
+        return Pending::default();
     }
-    let Some(mut query) =
-        world.try_query_filtered::<(&ParticleId, &Mass, &Temperature), bevy_ecs::prelude::With<Particle>>()
-    else {
-        return 0.0;
+    let Some(mut query) = world.try_query_filtered::<(
+        &ParticleId,
+        &Mass,
+        &Temperature,
+        &crate::components::Velocity,
+    ), bevy_ecs::prelude::With<Particle>>() else {
+        return Pending::default();
     };
-    let mut stored: Vec<(u64, f64, f64)> = query
+    let mut stored: Vec<(u64, f64, f64, glam::DVec3)> = query
         .iter(world)
-        .map(|(id, m, t)| (id.0, m.0, t.0))
+        .map(|(id, m, t, v)| (id.0, m.0, t.0, v.0))
         .collect();
     stored.sort_by_key(|s| s.0);
     let c = sim.material().C;
     // Summed in id order: the same on any thread count.
-    stored
-        .iter()
-        .zip(bodies)
-        .map(|(&(_, m, theta), now)| m * c * (theta - now.temperature))
-        .sum()
+    let mut pending = Pending::default();
+    for (&(_, m, theta, v), now) in stored.iter().zip(bodies) {
+        pending.cooling += m * c * (theta - now.temperature);
+        let work = 0.5 * m * (now.velocity.length_squared() - v.length_squared());
+        let impulse = m * (now.velocity - v);
+        pending.work += work;
+        pending.work_turnover += work.abs();
+        pending.impulse += impulse;
+        pending.impulse_turnover += impulse.length();
+    }
+    pending
 }

@@ -91,14 +91,21 @@ pub const SERIES_COLUMNS: &[Column] = &[
     ),
 ];
 
-/// One row of the series: the bodies at the sample (sorted by id, brought to t) and the
-/// heat the event core's bodies lost by cooling since they were last brought up to date
-/// `pending_cooling` [J] (not yet in the ledger).
-pub fn series_row(
-    sim: &Simulation,
-    bodies: &[BodyState],
-    pending_cooling: f64,
-) -> Vec<Cell<'static>> {
+/// What the event core's bodies moved since they were last brought up to date, not yet
+/// in the ledger: cooling loss [J], a field's work [J] and impulse [kg m/s] with their
+/// turnovers. Zero on the stepped core.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Pending {
+    pub cooling: f64,
+    pub work: f64,
+    pub work_turnover: f64,
+    pub impulse: glam::DVec3,
+    pub impulse_turnover: f64,
+}
+
+/// One row of the series: the bodies at the sample (sorted by id, brought to t), with
+/// what the ledger has not booked yet added to its columns (`pending`).
+pub fn series_row(sim: &Simulation, bodies: &[BodyState], pending: Pending) -> Vec<Cell<'static>> {
     let clock = sim.clock();
     let c = sim.counters();
     let e = sim.ledger();
@@ -168,15 +175,15 @@ pub fn series_row(
         Cell::I(c.fragments_created as i64),
         Cell::F(e.reaction_heat),
         Cell::F(e.fracture_energy),
-        Cell::F(e.cooling_loss + pending_cooling),
+        Cell::F(e.cooling_loss + pending.cooling),
         Cell::F(e.impact_dissipation),
-        Cell::F(e.force_work),
-        Cell::F(e.force_work_turnover),
+        Cell::F(e.force_work + pending.work),
+        Cell::F(e.force_work_turnover + pending.work_turnover),
         Cell::F(e.external_heat),
-        Cell::F(e.force_impulse[0]),
-        Cell::F(e.force_impulse[1]),
-        Cell::F(e.force_impulse[2]),
-        Cell::F(e.force_impulse_turnover),
+        Cell::F(e.force_impulse[0] + pending.impulse.x),
+        Cell::F(e.force_impulse[1] + pending.impulse.y),
+        Cell::F(e.force_impulse[2] + pending.impulse.z),
+        Cell::F(e.force_impulse_turnover + pending.impulse_turnover),
         Cell::F(e.double_counted_heat),
     ]
 }

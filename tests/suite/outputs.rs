@@ -172,6 +172,49 @@ fn series_energy_closes_at_every_sample_with_the_pending_cooling_loss() {
 }
 
 #[test]
+fn series_ledgers_close_at_every_sample_in_a_field() {
+    // Under uniform g on the event core each body gains kinetic energy and momentum as it
+    // flies, booked only when it is next touched: the series adds the field's pending
+    // work and impulse, so E − W_forces + L − R and P − J_forces stay put at every sample.
+    let mut s = merging_cloud();
+    s.field = agglo::scenario::Field {
+        gravity: [0.0, -3e3, -1e4],
+        drag: None,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    run_and_watch(
+        &s,
+        &paths(dir.path(), "csv", SampleSchedule::Interval { dt: 1e-4 }),
+        1_000_000,
+    );
+    let t = read_table(&dir.path().join("series.csv")).unwrap();
+    let (ke, th, loss, heat, work) = (
+        f(&t, "kinetic_energy"),
+        f(&t, "thermal_energy"),
+        f(&t, "cooling_loss"),
+        f(&t, "reaction_heat"),
+        f(&t, "force_work"),
+    );
+    let (pz, jz) = (f(&t, "momentum_z"), f(&t, "force_impulse_z"));
+    let e0 = ke[0] + th[0];
+    for k in 0..t.len() {
+        let closed = ke[k] + th[k] + loss[k] - heat[k] - work[k];
+        // Rounding over ~1e3 impacts of energies ~e0 and the work: 1e-9 relative.
+        let scale = e0 + heat[k] + loss[k] + work[k].abs();
+        assert!(
+            (closed - e0).abs() < 1e-9 * scale,
+            "sample {k}: {closed} vs {e0}"
+        );
+        let p = pz[k] - jz[k];
+        assert!(
+            (p - pz[0]).abs() < 1e-9 * jz[k].abs().max(1e-30),
+            "sample {k}: P_z − J_z"
+        );
+    }
+    assert!(work[t.len() - 1] > 0.1 * ke[0], "the field must do work");
+}
+
+#[test]
 fn sizes_count_every_body_and_conserve_the_primaries() {
     let s = merging_cloud();
     let dir = tempfile::tempdir().unwrap();
