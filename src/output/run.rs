@@ -100,13 +100,21 @@ impl RunTables {
         if paths.is_empty() {
             return Ok(None);
         }
-        let create = |path: &Option<PathBuf>, name: &str, columns: &'static [Column]| {
+        let create = |path: &Option<PathBuf>, name: &str, columns: &[Column]| {
             path.as_deref()
                 .map(|p: &Path| TableWriter::create(p, name, columns))
                 .transpose()
         };
         let series = create(&paths.series, "series", SERIES_COLUMNS)?;
-        let snapshots = create(&paths.snapshots, "snapshots", SNAPSHOT_COLUMNS)?;
+        // Snapshots carry the quantities extensions registered (engine/carried.rs) as
+        // columns after the built-in ones, as --final-state does.
+        let carried = sim.carried().names;
+        let snapshot_columns: Vec<Column> = SNAPSHOT_COLUMNS
+            .iter()
+            .copied()
+            .chain(carried.iter().map(|name| carried_column(name)))
+            .collect();
+        let snapshots = create(&paths.snapshots, "snapshots", &snapshot_columns)?;
         let sizes = match create(&paths.sizes, "sizes", SIZES_COLUMNS)? {
             Some(table) => {
                 let can_fragment = sim.systems().iter().any(|s| s.contains("fragment"));
@@ -199,30 +207,52 @@ impl RunTables {
             }
         }
         if let Some(table) = &mut self.snapshots {
-            for b in &bodies {
-                table
-                    .row(&[
-                        Cell::F(t),
-                        Cell::I(b.id as i64),
-                        Cell::F(b.position.x),
-                        Cell::F(b.position.y),
-                        Cell::F(b.position.z),
-                        Cell::F(b.velocity.x),
-                        Cell::F(b.velocity.y),
-                        Cell::F(b.velocity.z),
-                        Cell::F(b.mass),
-                        Cell::F(b.radius),
-                        Cell::F(b.temperature),
-                        Cell::F(b.hardness),
-                        Cell::F(b.primaries),
-                    ])
-                    .context("writing the snapshots")?;
+            let carried = sim.carried();
+            let mut cells = Vec::new();
+            for (i, b) in bodies.iter().enumerate() {
+                cells.clear();
+                cells.extend_from_slice(&[
+                    Cell::F(t),
+                    Cell::I(b.id as i64),
+                    Cell::F(b.position.x),
+                    Cell::F(b.position.y),
+                    Cell::F(b.position.z),
+                    Cell::F(b.velocity.x),
+                    Cell::F(b.velocity.y),
+                    Cell::F(b.velocity.z),
+                    Cell::F(b.mass),
+                    Cell::F(b.radius),
+                    Cell::F(b.temperature),
+                    Cell::F(b.hardness),
+                    Cell::F(b.primaries),
+                ]);
+                // The carried values, in the bodies' id order (NaN where a body has none).
+                if let Some((id, values)) = carried.rows.get(i) {
+                    anyhow::ensure!(
+                        *id == b.id,
+                        "carried quantities out of step with the bodies"
+                    );
+                    cells.extend(values.iter().map(|v| Cell::F(v.unwrap_or(f64::NAN))));
+                }
+                table.row(&cells).context("writing the snapshots")?;
             }
         }
         self.sampler.taken(t);
         self.samples += 1;
         Ok(())
     }
+}
+
+/// The column of a quantity an extension carries (its unit is the extension's own).
+fn carried_column(name: &str) -> Column {
+    // Column names are 'static (the built-in ones are constants); a run registers a few
+    // carried quantities once, so their names are kept for the life of the process.
+    let name: &'static str = Box::leak(name.to_owned().into_boxed_str());
+    float(
+        name,
+        "-",
+        "a quantity an extension carries through merges and fragments (NaN: the body has none)",
+    )
 }
 
 /// What the event core's bodies have moved since they were last brought up to date and

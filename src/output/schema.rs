@@ -235,7 +235,7 @@ pub fn tables() -> Vec<(&'static str, &'static str, &'static [Column])> {
         ),
         (
             "--snapshots",
-            "one row per body per sample, sorted by t then id",
+            "one row per body per sample, sorted by t then id; then one column per quantity an extension carries (engine/carried.rs), named by it, NaN where a body has none",
             SNAPSHOT_COLUMNS,
         ),
         (
@@ -245,7 +245,7 @@ pub fn tables() -> Vec<(&'static str, &'static str, &'static [Column])> {
         ),
         (
             "--final-state",
-            "one row per body at the end, sorted by id (CSV only)",
+            "one row per body at the end, sorted by id (CSV only); then one column per quantity an extension carries, named by it, empty where a body has none",
             &SNAPSHOT_COLUMNS[1..],
         ),
     ]

@@ -94,7 +94,7 @@ pub fn is_parquet(path: &Path) -> bool {
 
 /// A table being written.
 pub struct TableWriter {
-    columns: &'static [Column],
+    columns: Vec<Column>,
     sink: Sink,
     rows: u64,
 }
@@ -119,7 +119,7 @@ enum Buffer {
 impl TableWriter {
     /// Create `path` for rows of `columns` (Parquet if it ends in `.parquet`, else CSV);
     /// `name` names the Parquet schema.
-    pub fn create(path: &Path, name: &str, columns: &'static [Column]) -> anyhow::Result<Self> {
+    pub fn create(path: &Path, name: &str, columns: &[Column]) -> anyhow::Result<Self> {
         let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
         let sink = if is_parquet(path) {
             let fields: String = columns
@@ -157,7 +157,7 @@ impl TableWriter {
             Sink::Csv(out)
         };
         Ok(Self {
-            columns,
+            columns: columns.to_vec(),
             sink,
             rows: 0,
         })

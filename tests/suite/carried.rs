@@ -124,3 +124,66 @@ fn the_combine_and_split_rules() {
     assert_eq!(Split::Copy.split(6.0, 3), 6.0);
     assert_eq!(Split::Function(|v, p| v - p as f64).split(6.0, 3), 3.0);
 }
+
+#[test]
+fn snapshots_carry_the_registered_quantities_as_columns() {
+    use agglo::output::table::read_table;
+    use agglo::output::{RunTables, SampleSchedule, TablePaths};
+    let text = std::fs::read_to_string(Path::new("scenarios/quick_demo.json")).unwrap();
+    let s = Scenario::from_json(&text).unwrap();
+    for ext in ["csv", "parquet"] {
+        let dir = tempfile::tempdir().unwrap();
+        let snapshots = dir.path().join(format!("snapshots.{ext}"));
+        let paths = TablePaths {
+            series: None,
+            sizes: None,
+            snapshots: Some(snapshots.clone()),
+            collisions: None,
+            sampling: Some(SampleSchedule::Interval { dt: 1e-3 }),
+        };
+        let mut builder = Simulation::builder(&s).unwrap();
+        builder.add_default_plugins().add_plugin(&Carry);
+        let mut sim = builder.build().unwrap();
+        let mut tables = RunTables::open(&paths, &s, &sim).unwrap().unwrap();
+        sim.run_with(|sim| {
+            tables.observe(sim).unwrap();
+            std::ops::ControlFlow::Continue(())
+        })
+        .unwrap();
+        tables.finish(&sim).unwrap();
+        let table = read_table(&snapshots).unwrap();
+        let (t, charge) = (table.floats("t").unwrap(), table.floats("charge").unwrap());
+        assert!(table.floats("label").is_ok(), "{ext}: a label column");
+        // Every sample holds the same total charge (to rounding), and the last sample's
+        // values are the simulation's own.
+        let scale: f64 = charge.iter().map(|q| q.abs()).sum::<f64>() / 5.0;
+        let mut samples: Vec<f64> = t.clone();
+        samples.dedup();
+        assert!(samples.len() >= 4, "{ext}: {samples:?}");
+        let totals: Vec<f64> = samples
+            .iter()
+            .map(|&ts| {
+                t.iter()
+                    .zip(&charge)
+                    .filter(|(a, _)| **a == ts)
+                    .map(|(_, q)| q)
+                    .sum()
+            })
+            .collect();
+        for total in &totals {
+            assert!(
+                (total - totals[0]).abs() <= 1e-12 * scale,
+                "{ext}: {totals:?}"
+            );
+        }
+        let last = *samples.last().unwrap();
+        let final_charges: Vec<f64> = t
+            .iter()
+            .zip(&charge)
+            .filter(|(a, _)| **a == last)
+            .map(|(_, q)| *q)
+            .collect();
+        let expected: Vec<f64> = sim.carried().rows.iter().map(|r| r.1[0].unwrap()).collect();
+        assert_eq!(final_charges, expected, "{ext}");
+    }
+}
