@@ -132,6 +132,10 @@ const MAX_ITERATIONS: usize = 64;
 /// A gap this small relative to the contact distance counts as touching.
 const TOUCHING: f64 = 1e-12;
 
+/// A touching pair whose closing speed is below this fraction of its relative speed
+/// grazes rather than meets (the same rule as the event core's straight flights).
+const GRAZING: f64 = 1e-10;
+
 /// First time s in [0, `horizon`] at which two spheres at separation `d` = x_b − x_a
 /// [m] (now), with velocities `va`, `vb` [m/s] (now) and flights `fa`, `fb`, come within
 /// `reach` = b_a + b_b [m] while approaching. An approaching, touching or overlapping
@@ -206,7 +210,11 @@ pub fn contact_search(
         } else {
             -w.length()
         };
-        if gap <= tolerance && rate < 0.0 {
+        // Touching and closing faster than rounding can fake (the event core's grazing
+        // rule): a contact. A pair that only grazes would be declined when its contact is
+        // resolved (the approach re-checked from the synchronised positions may round the
+        // other way) and handed back at once, forever: it steps on instead.
+        if gap <= tolerance && rate < -GRAZING * w.length() {
             return Search::At(s);
         }
         // Touching but separating (a pair that has just bounced): the step below treats
@@ -215,7 +223,7 @@ pub fn contact_search(
         let accel = fa.acceleration_bound(va, s) + fb.acceleration_bound(vb, s);
         let mut h = safe_step(gap, rate, accel);
         if h <= f64::EPSILON * s {
-            if rate < 0.0 {
+            if rate < -GRAZING * w.length() {
                 return Search::At(s); // converged to rounding
             }
             // Grazing at rounding level, not approaching: step past it by the time the
