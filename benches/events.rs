@@ -25,6 +25,20 @@ fn peer(variant: &str, n: usize) -> Scenario {
     .expect("peer scene")
 }
 
+/// Time `steps` steps of `scenario` from a fresh start (set-up not timed).
+fn time_steps(b: &mut criterion::Bencher, scenario: &Scenario, steps: u64) {
+    b.iter_batched(
+        || Simulation::new(scenario).unwrap(),
+        |mut sim| {
+            for _ in 0..steps {
+                sim.step().unwrap();
+            }
+            sim.counters().impacts
+        },
+        BatchSize::PerIteration,
+    )
+}
+
 fn bounce(c: &mut Criterion) {
     let steps = 2000u64;
     let mut group = c.benchmark_group("bounce");
@@ -36,18 +50,7 @@ fn bounce(c: &mut Criterion) {
         let scenario = peer("bounce", n);
         group.bench_function(
             format!("N={n}, {steps} collisions (elements = collisions)"),
-            |b| {
-                b.iter_batched(
-                    || Simulation::new(&scenario).unwrap(),
-                    |mut sim| {
-                        for _ in 0..steps {
-                            sim.step().unwrap();
-                        }
-                        sim.counters().impacts
-                    },
-                    BatchSize::PerIteration,
-                )
-            },
+            |b| time_steps(b, &scenario, steps),
         );
     }
     group.finish();
@@ -113,18 +116,7 @@ fn field(c: &mut Criterion) {
         scenario.field = f;
         group.bench_function(
             format!("N=10000, {name}, {steps} collisions (elements = collisions)"),
-            |b| {
-                b.iter_batched(
-                    || Simulation::new(&scenario).unwrap(),
-                    |mut sim| {
-                        for _ in 0..steps {
-                            sim.step().unwrap();
-                        }
-                        sim.counters().impacts
-                    },
-                    BatchSize::PerIteration,
-                )
-            },
+            |b| time_steps(b, &scenario, steps),
         );
     }
     group.finish();

@@ -13,34 +13,20 @@ use std::path::Path;
 use anyhow::{Context, bail};
 
 use crate::cloud::PlacedBody;
+use crate::output::run::SNAPSHOT_COLUMNS;
 use crate::output::table::read_table;
-
-/// Columns a body table may have.
-pub const KNOWN_COLUMNS: [&str; 13] = [
-    "t",
-    "id",
-    "x",
-    "y",
-    "z",
-    "vx",
-    "vy",
-    "vz",
-    "mass",
-    "radius",
-    "temperature",
-    "hardness",
-    "primaries",
-];
 
 /// The bodies of the table at `path`, in its row order.
 pub fn load_bodies(path: &Path) -> anyhow::Result<Vec<PlacedBody>> {
     let table = read_table(path)?;
+    // A body table has the columns of --snapshots (t first) and --final-state.
+    let known = || SNAPSHOT_COLUMNS.iter().map(|c| c.name);
     for name in &table.names {
-        if !KNOWN_COLUMNS.contains(&name.as_str()) {
+        if !known().any(|k| k == name) {
             bail!(
                 "{}: unknown column `{name}` (allowed: {})",
                 path.display(),
-                KNOWN_COLUMNS.join(", ")
+                known().collect::<Vec<_>>().join(", ")
             );
         }
     }

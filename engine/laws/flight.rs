@@ -133,13 +133,30 @@ const MAX_ITERATIONS: usize = 64;
 const TOUCHING: f64 = 1e-12;
 
 /// A touching pair whose closing speed is below this fraction of its relative speed
-/// grazes rather than meets (the same rule as the event core's straight flights).
-const GRAZING: f64 = 1e-10;
+/// grazes rather than meets ([`line_contact`], and the curved search alike).
+pub const GRAZING: f64 = 1e-10;
+
+/// The exact time to contact along a line ([`time_to_contact`], Bannerman et al.'s
+/// stable form: an approaching overlapping pair meets "now"), except that a touching
+/// pair that only grazes — closing slower than [`GRAZING`] of its relative speed `u` —
+/// is not due. The step that resolves a contact re-checks the approach with the
+/// synchronised positions; a pair this close to tangential could pass one test and fail
+/// the other by rounding and be handed back forever with zero-length steps. The event
+/// core predicts straight flights with it.
+#[inline]
+pub fn line_contact(d: DVec3, u: DVec3, reach: f64) -> Option<f64> {
+    let t = time_to_contact(d, u, reach)?;
+    if t == 0.0 && d.dot(u) > -GRAZING * d.length() * u.length() {
+        return None;
+    }
+    Some(t)
+}
 
 /// First time s in [0, `horizon`] at which two spheres at separation `d` = x_b − x_a
 /// [m] (now), with velocities `va`, `vb` [m/s] (now) and flights `fa`, `fb`, come within
 /// `reach` = b_a + b_b [m] while approaching. An approaching, touching or overlapping
-/// pair is due at once (At(0)), as with [`time_to_contact`].
+/// pair is due at once (At(0)), as with [`time_to_contact`]; a touching pair that only
+/// grazes (closing slower than 1e-10 of its relative speed) is not.
 pub fn contact_search(
     d: DVec3,
     va: DVec3,
@@ -156,7 +173,7 @@ pub fn contact_search(
         _ => false,
     };
     if straight {
-        return match time_to_contact(d, vb - va, reach) {
+        return match line_contact(d, vb - va, reach) {
             Some(t) if t <= horizon => Search::At(t),
             _ => Search::Clear,
         };
@@ -178,7 +195,7 @@ pub fn contact_search(
         && ca == cb
     {
         let tau = *ta;
-        return match time_to_contact(d, vb - va, reach) {
+        return match line_contact(d, vb - va, reach) {
             Some(lambda) if lambda < tau => {
                 let s = -tau * (-lambda / tau).ln_1p();
                 if s <= horizon {

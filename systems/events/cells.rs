@@ -441,30 +441,17 @@ impl CellGrid {
     /// Time until a gridded body at position `x` with velocity `v` leaves its own-level
     /// cell, with the axis and direction; None for whole-box bodies or v = 0.
     pub fn crossing(&self, slot: u32, x: DVec3, v: DVec3) -> Option<(f64, u8, i8)> {
-        let own = self.level_of(slot)? as usize;
-        if own == self.levels.len() {
-            return None;
-        }
-        let rel = self.offset_in_cell(slot, own, x);
-        let w = self.levels[own].width;
-        let mut best: Option<(f64, u8, i8)> = None;
-        for axis in 0..3 {
-            let (r, u) = (rel[axis], v[axis]);
-            let candidate = if u > 0.0 {
+        // A straight line: along each axis, the wall it moves toward at constant speed.
+        self.crossing_by(slot, x, |axis, r, w| {
+            let u = v[axis];
+            if u > 0.0 {
                 Some(((w - r) / u, 1))
             } else if u < 0.0 {
                 Some((r / -u, -1))
             } else {
                 None
-            };
-            if let Some((t, step)) = candidate {
-                let t = t.max(0.0);
-                if best.is_none_or(|b| t < b.0) {
-                    best = Some((t, axis as u8, step));
-                }
             }
-        }
-        best
+        })
     }
 
     /// Time until a gridded body at position `x` leaves its own-level cell along a curved

@@ -24,8 +24,9 @@ use glam::DVec3;
 use super::calendar::{Calendar, Event, EventKind, permute_in_place};
 use super::cells::{CellGrid, Partner, round_fast};
 use agglo_engine::field::{Field, FieldKind};
-use agglo_engine::laws::contact_time::time_to_contact;
 use agglo_engine::laws::flight::{Flight, Search, contact_search, wall_crossing};
+// The exact time to contact along a line, with the grazing rule (laws::flight).
+use agglo_engine::laws::flight::line_contact as contact_time;
 use agglo_engine::laws::grid::IMAGES;
 use agglo_engine::resources::BoxGeometry;
 
@@ -50,28 +51,9 @@ fn newly_overlapping(d: DVec3, u: DVec3, reach: f64, since: f64) -> bool {
 /// fraction of the box side relative to the owner.
 const REFRESH_FRACTION: f64 = 0.25;
 
-/// A touching pair whose closing speed is below this fraction of its relative speed
-/// counts as grazing, not approaching.
-const GRAZING: f64 = 1e-10;
-
-/// The exact time to contact (`time_to_contact`, Bannerman et al.'s stable form: an
-/// approaching overlapping pair meets "now"), except that a touching pair that only
-/// grazes — closing speed below 1e-10 of its relative speed — gets no event. The step
-/// that resolves a contact re-checks the approach with the synchronised positions; a
-/// pair this close to tangential could pass one test and fail the other by rounding and
-/// be handed back forever with zero-length steps.
-#[inline]
-fn contact_time(d: DVec3, u: DVec3, reach: f64) -> Option<f64> {
-    let t = time_to_contact(d, u, reach)?;
-    if t == 0.0 && d.dot(u) > -GRAZING * d.length() * u.length() {
-        return None;
-    }
-    Some(t)
-}
-
-/// The first contact along curved flights within `horizon` (see `laws::flight`), with
-/// the grazing rule of [`contact_time`]; `(t, true)` when the search was cut short and
-/// only says "not before t".
+/// The first contact along curved flights within `horizon` (see `laws::flight`, which
+/// applies the grazing rule of [`contact_time`] too); `(t, true)` when the search was cut
+/// short and only says "not before t".
 #[inline]
 fn curved_contact_time(
     d: DVec3,
@@ -83,13 +65,7 @@ fn curved_contact_time(
     horizon: f64,
 ) -> Option<(f64, bool)> {
     match contact_search(d, va, vb, fa, fb, reach, horizon) {
-        Search::At(t) => {
-            let u = vb - va;
-            if t == 0.0 && d.dot(u) > -GRAZING * d.length() * u.length() {
-                return None;
-            }
-            Some((t, false))
-        }
+        Search::At(t) => Some((t, false)),
         Search::NotBefore(t) => Some((t, true)),
         Search::Clear => None,
     }

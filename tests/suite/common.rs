@@ -63,3 +63,23 @@ pub fn growth_of_agglo_run(scene: &std::path::Path, seed: u64, dir: &std::path::
     let v: Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
     v["growth"]["growth_ratio"].as_f64().unwrap()
 }
+
+/// Mean and standard error of the mean of `xs` (n ≥ 2).
+pub fn mean_and_standard_error(xs: &[f64]) -> (f64, f64) {
+    let n = xs.len() as f64;
+    let mean = xs.iter().sum::<f64>() / n;
+    let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
+}
+
+/// Two ensembles (`a` from the event core, `b` from the stepped core) agree on `what`:
+/// their means differ by at most 3 standard errors of the difference (or by rounding,
+/// 1e-12 of the mean, when both spreads vanish).
+pub fn assert_cores_agree(what: &str, a: &[f64], b: &[f64]) {
+    let ((ma, sa), (mb, sb)) = (mean_and_standard_error(a), mean_and_standard_error(b));
+    let bound = 3.0 * (sa * sa + sb * sb).sqrt();
+    assert!(
+        (ma - mb).abs() <= bound.max(1e-12 * ma.abs()),
+        "{what}: events {ma} ± {sa}, stepped {mb} ± {sb}"
+    );
+}

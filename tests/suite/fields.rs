@@ -187,14 +187,6 @@ fn ensemble_scene(field: Value, core: &str, seed: u64) -> Scenario {
     }))
 }
 
-/// Mean and standard error of the mean.
-fn mean_se(xs: &[f64]) -> (f64, f64) {
-    let n = xs.len() as f64;
-    let mean = xs.iter().sum::<f64>() / n;
-    let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, (var / n).sqrt())
-}
-
 /// Impacts, growth b_f/b0 and final kinetic energy [J] of one run.
 fn observe(s: &Scenario) -> [f64; 3] {
     let mut sim = Simulation::new(s).unwrap();
@@ -230,21 +222,15 @@ fn cores_agree(field: Value) {
         runs[0].push(observe(&ensemble_scene(field.clone(), "events", seed)));
         runs[1].push(observe(&ensemble_scene(field.clone(), "stepped", seed)));
     }
+    // The impact count must be non-trivial for the comparison to mean anything.
+    assert!(runs[0][0][0] > 100.0, "too few impacts: {}", runs[0][0][0]);
     for (k, what) in ["impacts", "growth b_f/b0", "kinetic energy"]
         .iter()
         .enumerate()
     {
         let e: Vec<f64> = runs[0].iter().map(|r| r[k]).collect();
         let s: Vec<f64> = runs[1].iter().map(|r| r[k]).collect();
-        let ((me, se), (ms, ss)) = (mean_se(&e), mean_se(&s));
-        let bound = 3.0 * (se * se + ss * ss).sqrt();
-        eprintln!("{what}: events {me:.6e} ± {se:.2e}, stepped {ms:.6e} ± {ss:.2e}");
-        // The impact count must be non-trivial for the comparison to mean anything.
-        assert!(runs[0][0][0] > 100.0, "too few impacts: {}", runs[0][0][0]);
-        assert!(
-            (me - ms).abs() <= bound.max(1e-12 * me.abs()),
-            "{what}: events {me} ± {se}, stepped {ms} ± {ss} (field {field})"
-        );
+        common::assert_cores_agree(&format!("{what} (field {field})"), &e, &s);
     }
 }
 

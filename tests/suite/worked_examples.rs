@@ -115,21 +115,10 @@ fn gas_drag_settles_alike_on_both_cores() {
             observed[k].push([c.impacts as f64, c.bonds as f64, growth]);
         }
     }
-    let mean_se = |xs: &[f64]| {
-        let n = xs.len() as f64;
-        let m = xs.iter().sum::<f64>() / n;
-        let v = xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-        (m, (v / n).sqrt())
-    };
     for (i, what) in ["impacts", "bonds", "growth"].iter().enumerate() {
         let e: Vec<f64> = observed[0].iter().map(|r| r[i]).collect();
         let s: Vec<f64> = observed[1].iter().map(|r| r[i]).collect();
-        let ((me, se), (ms, ss)) = (mean_se(&e), mean_se(&s));
-        let bound = 3.0 * (se * se + ss * ss).sqrt();
-        assert!(
-            (me - ms).abs() <= bound.max(1e-12 * me.abs()),
-            "{what}: events {me} ± {se}, stepped {ms} ± {ss}"
-        );
+        crate::common::assert_cores_agree(what, &e, &s);
     }
     // The field matters: settling changes how many pairs bond.
     let with_field: Vec<f64> = observed[0].iter().map(|r| r[1]).collect();
