@@ -22,7 +22,7 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 
 use super::calendar::{Calendar, Event, EventKind, permute_in_place};
-use super::cells::{CellGrid, Partner, round_fast};
+use super::cells::{CellGrid, Partner, prefetch, round_fast};
 use agglo_engine::field::{Field, FieldKind};
 use agglo_engine::laws::flight::{Flight, Search, contact_search, wall_crossing};
 // The exact time to contact along a line, with the grazing rule (laws::flight).
@@ -110,6 +110,39 @@ impl Trajectory {
     pub fn at(&self, t: f64) -> DVec3 {
         self.position + self.velocity * (t - self.t_ref)
     }
+
+    fn path(&self) -> Path {
+        Path {
+            position: self.position,
+            velocity: self.velocity,
+            t_ref: self.t_ref,
+            radius: self.radius,
+        }
+    }
+}
+
+/// The part of a trajectory a prediction reads for every candidate partner: one cache
+/// line per body (the entity, id and τ are read only for the partner an event names, and
+/// live in arrays of their own), so a neighbour scan touches one line per partner.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+struct Path {
+    /// Position at `t_ref`, wrapped into [−D, D) [m].
+    position: DVec3,
+    /// Velocity [m/s].
+    velocity: DVec3,
+    /// Reference time t_ref [s].
+    t_ref: f64,
+    /// Radius [m].
+    radius: f64,
+}
+
+impl Path {
+    /// Unwrapped position at time t [m] on a straight flight.
+    #[inline]
+    fn at(&self, t: f64) -> DVec3 {
+        self.position + self.velocity * (t - self.t_ref)
+    }
 }
 
 pub use agglo_engine::resources::EventStats;
@@ -130,7 +163,12 @@ pub struct EventCore {
     /// The field bodies fly in, and its kind.
     field: Field,
     kind: FieldKind,
-    slots: Vec<Trajectory>,
+    /// Per slot: the path (hot), the entity and stable id, τ (under drag only: empty
+    /// otherwise, ∞ is implied), the event counter, whether a body is there.
+    paths: Vec<Path>,
+    entities: Vec<Entity>,
+    ids: Vec<u64>,
+    taus: Vec<f64>,
     counters: Vec<u32>,
     alive: Vec<bool>,
     free: Vec<u32>,
@@ -139,6 +177,8 @@ pub struct EventCore {
     calendar: Calendar,
     /// Predict against every body through every image (the O(N²) reference).
     brute_force: bool,
+    /// A prediction's candidate partners (scratch, kept to avoid allocating).
+    candidates: Vec<(u32, Partner)>,
     /// Predictions made when the slots were last renumbered.
     predictions_at_renumber: u64,
     /// Renumber slots periodically (on by default; tests show that it changes no result).
@@ -185,7 +225,10 @@ impl EventCore {
             frame_flight: Flight::Ballistic,
             field: Field::default(),
             kind: FieldKind::None,
-            slots: Vec::with_capacity(bodies),
+            paths: Vec::with_capacity(bodies),
+            entities: Vec::with_capacity(bodies),
+            ids: Vec::with_capacity(bodies),
+            taus: Vec::new(),
             counters: Vec::with_capacity(bodies),
             alive: Vec::with_capacity(bodies),
             free: Vec::new(),
@@ -193,6 +236,7 @@ impl EventCore {
             grid: CellGrid::new(half_width, min_radius, bodies),
             calendar: Calendar::default(),
             brute_force,
+            candidates: Vec::new(),
             predictions_at_renumber: 0,
             renumbering: true,
             stats: EventStats::default(),
@@ -208,43 +252,55 @@ impl EventCore {
         self.frame_flight = field.flight_with(tau);
     }
 
-    /// A body's flight between events.
+    /// Drag relaxation time of a slot's body [s] (∞ without drag).
     #[inline]
-    fn flight_of(&self, t: &Trajectory) -> Flight {
+    fn tau(&self, slot: u32) -> f64 {
+        self.taus
+            .get(slot as usize)
+            .copied()
+            .unwrap_or(f64::INFINITY)
+    }
+
+    /// The flight of a slot's body between events.
+    #[inline]
+    fn flight_of(&self, slot: u32) -> Flight {
         match self.kind {
             FieldKind::None => Flight::Ballistic,
             FieldKind::Uniform => self.frame_flight,
-            FieldKind::Drag => self.field.flight_with(t.tau),
+            FieldKind::Drag => self.field.flight_with(self.tau(slot)),
         }
     }
 
-    /// Unwrapped position of a trajectory at `time` [m].
+    /// Unwrapped position of a slot's path at `time` [m].
     #[inline]
-    fn position_at(&self, t: &Trajectory, time: f64) -> DVec3 {
+    fn position_at(&self, slot: u32, p: &Path, time: f64) -> DVec3 {
         match self.kind {
-            FieldKind::None => t.at(time),
+            FieldKind::None => p.at(time),
             _ => {
-                self.flight_of(t)
-                    .advance(t.position, t.velocity, time - t.t_ref)
+                self.flight_of(slot)
+                    .advance(p.position, p.velocity, time - p.t_ref)
                     .0
             }
         }
     }
 
-    /// Unwrapped position [m] and velocity [m/s] of a trajectory at `time`.
+    /// Unwrapped position [m] and velocity [m/s] of a slot's path at `time`.
     #[inline]
-    fn state_at(&self, t: &Trajectory, time: f64) -> (DVec3, DVec3) {
+    fn state_at(&self, slot: u32, p: &Path, time: f64) -> (DVec3, DVec3) {
         match self.kind {
-            FieldKind::None => (t.at(time), t.velocity),
+            FieldKind::None => (p.at(time), p.velocity),
             _ => self
-                .flight_of(t)
-                .advance(t.position, t.velocity, time - t.t_ref),
+                .flight_of(slot)
+                .advance(p.position, p.velocity, time - p.t_ref),
         }
     }
 
     /// Bytes held by the core (slots, grid, calendar).
     pub fn bytes(&self) -> usize {
-        self.slots.capacity() * std::mem::size_of::<Trajectory>()
+        self.paths.capacity() * std::mem::size_of::<Path>()
+            + self.entities.capacity() * std::mem::size_of::<Entity>()
+            + self.ids.capacity() * 8
+            + self.taus.capacity() * 8
             + self.counters.capacity() * 4
             + self.alive.capacity()
             + self.free.capacity() * 4
@@ -275,9 +331,10 @@ impl EventCore {
         shift - side * DVec3::new(round_fast(k.x), round_fast(k.y), round_fast(k.z))
     }
 
-    /// A trajectory's position at time t in the grid's moving frame [m].
-    fn grid_position(&self, t: &Trajectory, time: f64) -> DVec3 {
-        self.position_at(t, time) - self.frame_shift(time)
+    /// A slot's position at time t in the grid's moving frame [m].
+    fn grid_position(&self, slot: u32, time: f64) -> DVec3 {
+        let p = &self.paths[slot as usize];
+        self.position_at(slot, p, time) - self.frame_shift(time)
     }
 
     fn min_image(&self, d: DVec3) -> DVec3 {
@@ -294,34 +351,71 @@ impl EventCore {
     }
 
     /// The trajectory in a slot.
-    pub fn trajectory(&self, slot: u32) -> &Trajectory {
-        &self.slots[slot as usize]
+    pub fn trajectory(&self, slot: u32) -> Trajectory {
+        let p = &self.paths[slot as usize];
+        Trajectory {
+            entity: self.entities[slot as usize],
+            id: self.ids[slot as usize],
+            position: p.position,
+            velocity: p.velocity,
+            t_ref: p.t_ref,
+            radius: p.radius,
+            tau: self.tau(slot),
+        }
+    }
+
+    /// The stable id of a slot's body.
+    pub fn id_of(&self, slot: u32) -> u64 {
+        self.ids[slot as usize]
+    }
+
+    /// The entity of a slot's body.
+    pub fn entity_of(&self, slot: u32) -> Entity {
+        self.entities[slot as usize]
+    }
+
+    /// Store a trajectory in a slot (the position wrapped into the box).
+    fn store(&mut self, slot: u32, t: &Trajectory) {
+        let s = slot as usize;
+        self.paths[s] = Path {
+            position: self.wrap(t.position),
+            ..t.path()
+        };
+        self.entities[s] = t.entity;
+        self.ids[s] = t.id;
+        if self.kind == FieldKind::Drag {
+            self.taus[s] = t.tau;
+        }
     }
 
     /// Add a body; returns its slot.
     pub fn insert(&mut self, trajectory: Trajectory) -> u32 {
-        let mut t = trajectory;
-        t.position = self.wrap(t.position);
+        let t = trajectory;
         let slot = match self.free.pop() {
             Some(s) => {
-                self.slots[s as usize] = t;
                 self.alive[s as usize] = true;
                 self.counters[s as usize] = self.counters[s as usize].wrapping_add(1);
                 s
             }
             None => {
-                self.slots.push(t);
+                self.paths.push(t.path());
+                self.entities.push(t.entity);
+                self.ids.push(t.id);
+                if self.kind == FieldKind::Drag {
+                    self.taus.push(t.tau);
+                }
                 self.alive.push(true);
                 self.counters.push(0);
-                (self.slots.len() - 1) as u32
+                (self.paths.len() - 1) as u32
             }
         };
+        self.store(slot, &t);
         let id = t.id as usize;
         if self.slot_of_id.len() <= id {
             self.slot_of_id.resize(id + 1, NONE);
         }
         self.slot_of_id[id] = slot;
-        let x = self.wrap(self.grid_position(&t, t.t_ref));
+        let x = self.wrap(self.grid_position(slot, t.t_ref));
         self.grid.insert(slot, t.radius, x);
         slot
     }
@@ -343,14 +437,13 @@ impl EventCore {
     /// A body's trajectory changed (impact, merge, force): store it, re-file it in the
     /// grid, and invalidate every prediction that named it.
     pub fn update(&mut self, slot: u32, trajectory: Trajectory) {
-        let mut t = trajectory;
-        t.position = self.wrap(t.position);
-        self.slots[slot as usize] = t;
+        let t = trajectory;
+        self.store(slot, &t);
         self.counters[slot as usize] = self.counters[slot as usize].wrapping_add(1);
         // The logical cell must hold the new position (a merged body sits at the centre
         // of mass, which may be in another cell).
         self.grid.remove(slot);
-        let x = self.wrap(self.grid_position(&t, t.t_ref));
+        let x = self.wrap(self.grid_position(slot, t.t_ref));
         self.grid.insert(slot, t.radius, x);
     }
 
@@ -378,7 +471,7 @@ impl EventCore {
     /// Predict `slot`'s next event from time `now` and file it in the calendar.
     pub fn schedule(&mut self, slot: u32, now: f64) {
         let event = self.predict(slot, now);
-        let id = self.slots[slot as usize].id;
+        let id = self.ids[slot as usize];
         self.calendar.set(slot, id, event);
     }
 
@@ -386,13 +479,13 @@ impl EventCore {
     /// or, for a gridded body, leaving its cell. Ties go to the smaller partner id.
     pub fn predict(&mut self, slot: u32, now: f64) -> Option<Event> {
         self.stats.predictions += 1;
-        let me = self.slots[slot as usize];
+        let me = self.paths[slot as usize];
         // Positions in the grid's frame: relative positions are the same in any frame.
         let shift = self.frame_shift(now);
-        let (x_me, v_me) = self.state_at(&me, now);
+        let (x_me, v_me) = self.state_at(slot, &me, now);
         let x_me = x_me - shift;
         let curved = self.kind == FieldKind::Drag;
-        let f_me = self.flight_of(&me);
+        let f_me = self.flight_of(slot);
         // Leaving the cell, found first: along a curved flight no contact later than it
         // can be the next event, so it bounds the pair searches. It is offered last, so
         // that a contact at the same time wins the tie.
@@ -406,8 +499,11 @@ impl EventCore {
         let mut deep = 0u64;
         // Largest relative speed to a partner paired through all images [m/s].
         let mut fastest_any_image = 0.0f64;
+        // A buffer kept across predictions: nothing is allocated per event.
+        let mut candidates = std::mem::take(&mut self.candidates);
         {
-            let slots = &self.slots;
+            let paths = &self.paths;
+            let ids = &self.ids;
             let alive = &self.alive;
             let counters = &self.counters;
             let grid = &self.grid;
@@ -415,8 +511,8 @@ impl EventCore {
             // My offset inside my cell at each level, computed once per level.
             let mut rel_cache: [Option<DVec3>; 16] = [None; 16];
             let mut pair = |j: u32, how: Partner| {
-                let other = &slots[j as usize];
-                let (x_other, v_other) = core.state_at(other, now);
+                let other = &paths[j as usize];
+                let (x_other, v_other) = core.state_at(j, other, now);
                 let x_other = x_other - shift;
                 let u = v_other - v_me;
                 let reach = me.radius + other.radius;
@@ -425,7 +521,7 @@ impl EventCore {
                 let horizon = best
                     .map_or(f64::INFINITY, |(t, _, _)| t)
                     .min(crossing.map_or(f64::INFINITY, |(t, _, _)| t));
-                let f_other = core.flight_of(other);
+                let f_other = core.flight_of(j);
                 let search = |d: DVec3| {
                     if curved {
                         curved_contact_time(d, v_me, v_other, &f_me, &f_other, reach, horizon)
@@ -442,9 +538,10 @@ impl EventCore {
                             return false;
                         }
                         let before = me.t_ref.max(other.t_ref);
-                        let moved = (core.position_at(other, now)
-                            - core.position_at(other, before))
-                            - (core.position_at(&me, now) - core.position_at(&me, before));
+                        let moved = (core.position_at(j, other, now)
+                            - core.position_at(j, other, before))
+                            - (core.position_at(slot, &me, now)
+                                - core.position_at(slot, &me, before));
                         (d - moved).length() >= reach * (1.0 - DEEP_OVERLAP)
                     } else {
                         newly_overlapping(d, u, reach, since)
@@ -496,7 +593,7 @@ impl EventCore {
                         &mut best,
                         now,
                         t,
-                        other.id,
+                        ids[j as usize],
                         EventKind::Contact {
                             slot: j,
                             counter: counters[j as usize],
@@ -508,16 +605,27 @@ impl EventCore {
                 }
             };
             if self.brute_force {
-                for j in 0..slots.len() as u32 {
+                for j in 0..paths.len() as u32 {
                     if j != slot && alive[j as usize] {
                         pair(j, Partner::AnyImage);
                     }
                 }
             } else {
-                let every = (0..slots.len() as u32).filter(|&j| alive[j as usize]);
-                grid.for_each_candidate(slot, every, &mut pair);
+                // Gather the partners, ask for their data, then test them: the misses
+                // overlap (see `CellGrid::gather_candidates`).
+                let every = (0..paths.len() as u32).filter(|&j| alive[j as usize]);
+                grid.gather_candidates(slot, every, &mut candidates);
+                for &(j, _) in candidates.iter() {
+                    prefetch(&paths[j as usize]);
+                    grid.prefetch_place(j);
+                }
+                for &(j, how) in candidates.iter() {
+                    pair(j, how);
+                }
             }
         }
+        candidates.clear();
+        self.candidates = candidates;
         // The 27 images around the minimum image hold every contact while the relative
         // displacement stays below half a box (b_i + b_j < L); refresh well before.
         if fastest_any_image > 0.0 {
@@ -546,7 +654,7 @@ impl EventCore {
         slot: u32,
         x: DVec3,
         v: DVec3,
-        me: &Trajectory,
+        me: &Path,
         now: f64,
     ) -> Option<(f64, u8, i8)> {
         match self.kind {
@@ -560,7 +668,7 @@ impl EventCore {
                     .crossing(slot, x, me.velocity - g * me.t_ref - self.frame_velocity)
             }
             FieldKind::Drag => {
-                let flight = self.flight_of(me);
+                let flight = self.flight_of(slot);
                 let frame = self.frame_flight;
                 let frame_now = frame.velocity(self.frame_velocity, now);
                 self.grid.crossing_by(slot, x, |axis, offset, width| {
@@ -621,7 +729,7 @@ impl EventCore {
 
     /// True when enough predictions were made since the last renumbering.
     pub fn due_for_renumbering(&self) -> bool {
-        let live = self.slots.len() - self.free.len();
+        let live = self.paths.len() - self.free.len();
         self.renumbering
             && live > 1
             && self.stats.predictions - self.predictions_at_renumber >= RENUMBER_EVERY * live as u64
@@ -637,15 +745,15 @@ impl EventCore {
         let mut order: Vec<(u64, u64, u32)> = self
             .live_slots()
             .map(|s| {
-                let t = &self.slots[s as usize];
-                let x = self.wrap(self.position_at(t, now) - shift);
-                (morton_key(x, self.half_width), t.id, s)
+                let p = &self.paths[s as usize];
+                let x = self.wrap(self.position_at(s, p, now) - shift);
+                (morton_key(x, self.half_width), self.ids[s as usize], s)
             })
             .collect();
         order.sort_unstable();
         // A full permutation: live slots to 0..live in Z-order, removed ones after them.
         let live = order.len();
-        let mut new_of_old = vec![NONE; self.slots.len()];
+        let mut new_of_old = vec![NONE; self.paths.len()];
         for (new, &(_, _, old)) in order.iter().enumerate() {
             new_of_old[old as usize] = new as u32;
         }
@@ -670,9 +778,17 @@ impl EventCore {
         self.calendar.renumber(&new_of_old, |partner| {
             alive[partner as usize].then(|| new_of_old[partner as usize])
         });
-        permute_in_place(&mut self.slots, new_of_old.clone());
+        permute_in_place(&mut self.paths, new_of_old.clone());
+        permute_in_place(&mut self.entities, new_of_old.clone());
+        permute_in_place(&mut self.ids, new_of_old.clone());
+        if !self.taus.is_empty() {
+            permute_in_place(&mut self.taus, new_of_old.clone());
+        }
         permute_in_place(&mut self.counters, new_of_old);
-        self.slots.truncate(live);
+        self.paths.truncate(live);
+        self.entities.truncate(live);
+        self.ids.truncate(live);
+        self.taus.truncate(live);
         self.counters.truncate(live);
         for (new, &(_, id, _)) in order.iter().enumerate() {
             self.slot_of_id[id as usize] = new as u32;
@@ -685,6 +801,6 @@ impl EventCore {
 
     /// Every live slot.
     pub fn live_slots(&self) -> impl Iterator<Item = u32> + '_ {
-        (0..self.slots.len() as u32).filter(|&s| self.alive[s as usize])
+        (0..self.paths.len() as u32).filter(|&s| self.alive[s as usize])
     }
 }

@@ -175,7 +175,9 @@ pub fn pop_due_contacts(
         if event.time > due {
             break;
         }
-        core.pop();
+        // A crossing, refresh or stale prediction is replaced by the body's next event in
+        // place (one sift instead of a pop and a push; the calendar's order is by
+        // (time, id) alone, so the events come out the same).
         match event.kind {
             EventKind::Crossing { axis, step } => {
                 core.cross(slot, axis, step);
@@ -191,7 +193,8 @@ pub fn pop_due_contacts(
                     core.schedule(slot, event.time.max(now));
                     continue;
                 }
-                let (a, b) = (core.trajectory(slot).id, core.trajectory(partner).id);
+                core.pop();
+                let (a, b) = (core.id_of(slot), core.id_of(partner));
                 let (sa, sb) = if a < b {
                     (slot, partner)
                 } else {
@@ -217,7 +220,7 @@ pub fn pop_due_contacts(
             counters.deferred_contacts += 1;
             continue;
         }
-        let (ea, eb) = (core.trajectory(sa).entity, core.trajectory(sb).entity);
+        let (ea, eb) = (core.entity_of(sa), core.entity_of(sb));
         let Ok([mut a, mut b]) = bodies.get_many_mut([ea, eb]) else {
             continue;
         };
@@ -331,14 +334,13 @@ fn settle(core: &mut EventCore, now: f64, limit: f64) {
         if event.time > limit {
             return;
         }
+        // Replaced in place, as in `pop_due_contacts`.
         match event.kind {
             EventKind::Crossing { axis, step } => {
-                core.pop();
                 core.cross(slot, axis, step);
                 core.schedule(slot, event.time.max(now));
             }
             EventKind::Refresh => {
-                core.pop();
                 core.schedule(slot, event.time.max(now));
             }
             EventKind::Contact {
@@ -348,7 +350,6 @@ fn settle(core: &mut EventCore, now: f64, limit: f64) {
                 if core.is_current(partner, counter) {
                     return;
                 }
-                core.pop();
                 core.stats.stale += 1;
                 core.schedule(slot, event.time.max(now));
             }
