@@ -1,7 +1,8 @@
 //! The hierarchical periodic cell grid of the event core (docs/model.md §4).
 //!
 //! Level k is a periodic grid of n_k³ cubic cells of width w_k = L / n_k, with
-//! n_{k+1} = n_k / 2, so a coarse cell is exactly 2 × 2 × 2 fine cells. A body lives
+//! n_{k+1} = n_k / 2 (or n_k / 3 at the coarse end: 9 → 3), so a coarse cell is exactly
+//! 2 × 2 × 2 (or 3 × 3 × 3) fine cells. A body lives
 //! ("is native") at the finest level whose cells are at least its diameter wide, and
 //! is also listed in every coarser level's cells. Two bodies can touch only if their
 //! cells are adjacent at the coarser of their two levels, so a body finds every
@@ -155,14 +156,15 @@ impl CellGrid {
         let most = by_size.min(by_count).min(MAX_CELLS_PER_SIDE as f64) as u32;
         let mut levels = Vec::new();
         if most >= 3 {
-            // Largest n ≤ most of the form m·2^p, m ∈ {1, 3, 5, 7}: halving then ends at
-            // 3 to 7 cells per side, so that large bodies stay gridded down to radius
-            // L/14, and n falls at most 1/5 short of `most` above 20 cells (with 2^p and
-            // 3·2^p alone, up to 1/3).
+            // Largest n ≤ most of the form m·2^p, m ∈ {1, 3, 9, 27}: halving, then
+            // dividing by 3, ends at 3 or 4 cells per side, so that large bodies stay
+            // gridded up to radius L/8; and above 24 cells n falls at most 1/4 short of
+            // `most` (with 2^p and 3·2^p alone, up to 1/3: 64 for most = 74 at N = 1e5,
+            // 1.55× the bodies per cell, and the pair tests, of N = 1e3; now 72).
             let mut n = 3u32;
             for candidate in (3..=most).rev() {
                 let odd = candidate >> candidate.trailing_zeros();
-                if matches!(odd, 1 | 3 | 5 | 7) {
+                if matches!(odd, 1 | 3 | 9 | 27) {
                     n = candidate;
                     break;
                 }
@@ -178,10 +180,14 @@ impl CellGrid {
                     native: Lists::default(),
                     natives: 0,
                 });
-                if !n.is_multiple_of(2) || n / 2 < 3 {
+                // Each coarser level's cells are whole blocks of the finer level's.
+                if n.is_multiple_of(2) && n / 2 >= 3 {
+                    n /= 2;
+                } else if n.is_multiple_of(3) && n / 3 >= 3 {
+                    n /= 3;
+                } else {
                     break;
                 }
-                n /= 2;
             }
         }
         Self {
@@ -228,9 +234,15 @@ impl CellGrid {
         (c[2] as usize * n + c[1] as usize) * n + c[0] as usize
     }
 
+    /// The cell at level k ≥ own holding own-level cell `c`.
+    #[inline]
     fn coarse(&self, own: usize, c: [u16; 3], k: usize) -> [u32; 3] {
-        let shift = k - own;
-        c.map(|x| (x as u32) >> shift)
+        if k == own {
+            return c.map(u32::from);
+        }
+        // A level-k cell is a block of (n_own / n_k)³ own-level cells.
+        let ratio = self.levels[own].n / self.levels[k].n;
+        c.map(|x| x as u32 / ratio)
     }
 
     /// Cell coordinates of a wrapped position at a gridded level.
@@ -562,6 +574,73 @@ impl CellGrid {
         );
     }
 
+    /// True when no body is too large for the gridded levels (then every pair is found
+    /// through cell offsets alone).
+    pub fn all_gridded(&self) -> bool {
+        self.whole.head[0] == NONE
+    }
+
+    /// The bodies that became possible partners of `slot` when it crossed from own-level
+    /// cell `old` one cell along `axis` by `step` (±1): at every level where its cell
+    /// changed, the 9 cells of the slab ahead of it, appended to `out` as
+    /// `gather_candidates` would list them. The slot must be gridded and no body
+    /// whole-box (`all_gridded`): every other partner was already a candidate at the
+    /// prediction before.
+    pub fn gather_slab(
+        &self,
+        slot: u32,
+        old: [u16; 3],
+        axis: usize,
+        step: i8,
+        out: &mut Vec<(u32, Partner)>,
+    ) {
+        let own = self.place[slot as usize].level as usize;
+        let c = self.place[slot as usize].cell;
+        for k in own..self.levels.len() {
+            let level = &self.levels[k];
+            if k != own && level.natives == 0 {
+                continue;
+            }
+            let ck = self.coarse(own, c, k);
+            if k != own && ck == self.coarse(own, old, k) {
+                continue; // same coarse cell: the same neighbours at this level
+            }
+            let lists = if k == own { &level.all } else { &level.native };
+            let n = level.n;
+            let shifted = |x: u32, d: i8| (x as i64 + d as i64).rem_euclid(n as i64) as u32;
+            let mut cells = [0usize; 9];
+            let mut offsets = [[0i8; 3]; 9];
+            let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
+            let mut i = 0;
+            for d2 in -1i8..=1 {
+                for d1 in -1i8..=1 {
+                    let mut offset = [0i8; 3];
+                    offset[axis] = step;
+                    offset[a1] = d1;
+                    offset[a2] = d2;
+                    let cell = [0, 1, 2].map(|a| shifted(ck[a], offset[a]));
+                    cells[i] = Self::cell_index(n, cell);
+                    offsets[i] = offset;
+                    prefetch(&lists.head[cells[i]]);
+                    i += 1;
+                }
+            }
+            for (cell, offset) in cells.into_iter().zip(offsets) {
+                let how = Partner::Cell {
+                    level: k as u8,
+                    offset,
+                };
+                let mut j = lists.head[cell];
+                while j != NONE {
+                    if j != slot {
+                        out.push((j, how));
+                    }
+                    j = lists.next[j as usize];
+                }
+            }
+        }
+    }
+
     /// Ask the memory system for what `offset_in_cell` will read of `slot`.
     #[inline]
     pub fn prefetch_place(&self, slot: u32) {
@@ -606,6 +685,25 @@ mod tests {
         assert_eq!(grid.level_for(2.0 / 6.0 / 2.0 * 0.999), 2);
         assert_eq!(grid.level_for(0.3), 3);
         assert_eq!(grid.level_for(0.5), 4);
+    }
+
+    #[test]
+    fn a_grid_of_nine_times_a_power_of_two_ends_in_thirds() {
+        // N = 1e5 equal bodies at φ ≈ 0.11 (the peer clouds): at most 74 cells per side
+        // by count; 72 = 9·8 is taken (64 before), and the coarse end divides by 3.
+        let grid = CellGrid::new(0.01, 0.01 / 77.5, 100_000);
+        assert_eq!(grid.cells_per_side(), vec![72, 36, 18, 9, 3]);
+        let mut grid = grid;
+        // A level-3 body (9 cells) and a level-0 body near it: the level-0 body's coarse
+        // cell at level 3 is its cell / 8, at level 4 (3 cells) its cell / 24.
+        grid.insert(0, 0.0001, DVec3::new(0.0005, 0.0, 0.0));
+        grid.insert(1, 0.02 / 9.0 / 2.0 * 0.99, DVec3::new(0.0012, 0.0, 0.0));
+        assert_eq!(grid.level_of(1), Some(3));
+        let mut found = Vec::new();
+        grid.gather_candidates(0, std::iter::empty(), &mut found);
+        assert!(found.iter().any(|&(j, _)| j == 1));
+        let ck = grid.coarse(0, grid.place[0].cell, 4);
+        assert_eq!(ck, grid.place[0].cell.map(|c| c as u32 / 24));
     }
 
     #[test]

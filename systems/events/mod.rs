@@ -180,8 +180,7 @@ pub fn pop_due_contacts(
         // (time, id) alone, so the events come out the same).
         match event.kind {
             EventKind::Crossing { axis, step } => {
-                core.cross(slot, axis, step);
-                core.schedule(slot, event.time.max(now));
+                core.cross_and_schedule(slot, axis, step, event.time.max(now));
             }
             EventKind::Refresh => core.schedule(slot, event.time.max(now)),
             EventKind::Contact {
@@ -337,8 +336,7 @@ fn settle(core: &mut EventCore, now: f64, limit: f64) {
         // Replaced in place, as in `pop_due_contacts`.
         match event.kind {
             EventKind::Crossing { axis, step } => {
-                core.cross(slot, axis, step);
-                core.schedule(slot, event.time.max(now));
+                core.cross_and_schedule(slot, axis, step, event.time.max(now));
             }
             EventKind::Refresh => {
                 core.schedule(slot, event.time.max(now));
