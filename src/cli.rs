@@ -113,8 +113,19 @@ pub enum StudyCommand {
 #[derive(clap::Args, Debug)]
 pub struct RunArgs {
     /// Scenario file (JSON).
-    #[arg(required_unless_present = "from", conflicts_with = "from")]
+    #[arg(required_unless_present_any = ["from", "resume"], conflicts_with_all = ["from", "resume"])]
     pub scenario: Option<PathBuf>,
+    /// Continue a stopped or killed run from the last checkpoint in its restart file
+    /// (written by a scene with `output.restart`): the final state and summary counters
+    /// are those of the uninterrupted run. The scenario is the one embedded in the file;
+    /// its output paths are ignored (pass --out / --final-state / --summary / tables);
+    /// checkpoints go on being written to the same file (or --restart).
+    #[arg(long, value_name = "RESTART", conflicts_with_all = ["from", "set", "seed"])]
+    pub resume: Option<PathBuf>,
+    /// Write restart checkpoints to this file (overrides `output.restart.path`; the
+    /// interval is `output.restart.every`, e.g. `--set output.restart.every=1e-3`).
+    #[arg(long, value_name = "FILE")]
+    pub restart: Option<PathBuf>,
     /// Re-run the scenario embedded in this recording (MCAP); the output paths it names are
     /// ignored (pass --out / --final-state / --summary).
     #[arg(long, value_name = "RECORDING")]
@@ -278,9 +289,10 @@ fn is_inverse_file(path: &Path) -> bool {
 }
 
 fn run(args: RunArgs) -> anyhow::Result<()> {
-    let mut scenario = match (&args.scenario, &args.from) {
-        (Some(path), _) => load(path)?,
-        (None, Some(recording)) => {
+    let mut resume_from = None;
+    let mut scenario = match (&args.scenario, &args.from, &args.resume) {
+        (Some(path), ..) => load(path)?,
+        (None, Some(recording), _) => {
             let mut s = agglo::record::scenario_from_recording(recording)?;
             // The recording's own output paths would overwrite files (even the recording).
             s.output.summary = None;
@@ -288,7 +300,22 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
             s.output.mcap = None;
             s
         }
-        (None, None) => anyhow::bail!("give a scenario file or --from RECORDING"),
+        (None, None, Some(file)) => {
+            let (mut s, snapshot) = agglo::restart::read(file)?;
+            // The stopped run's outputs would be overwritten by this continuation's.
+            s.output.summary = None;
+            s.output.final_state = None;
+            s.output.mcap = None;
+            s.output.series = None;
+            s.output.sizes = None;
+            s.output.snapshots = None;
+            s.output.collisions = None;
+            resume_from = Some(snapshot);
+            s
+        }
+        (None, None, None) => {
+            anyhow::bail!("give a scenario file, --from RECORDING or --resume RESTART")
+        }
     };
     if !args.set.is_empty() {
         scenario = scenario.with_settings(&args.set)?;
@@ -322,6 +349,31 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut sim = table_paths
         .simulation(&scenario)
         .context("setting up the scene")?;
+    if let (Some(snapshot), Some(file)) = (&resume_from, &args.resume) {
+        sim.resume(snapshot)
+            .with_context(|| format!("resuming from {}", file.display()))?;
+        if !args.quiet {
+            println!(
+                "resuming {} at t = {:e} s (step {}, {} bodies) from {}",
+                scenario.name,
+                snapshot.time(),
+                snapshot.clock.step,
+                snapshot.bodies.len(),
+                file.display()
+            );
+        }
+    }
+    let restart_file = agglo::restart::restart_path(
+        &scenario,
+        args.restart.as_deref().or(args.resume.as_deref()),
+        mcap_path.as_deref(),
+    );
+    let mut checkpoints_written: (u64, u64, f64) = (0, 0, 0.0);
+    // For the restart tests: SIGKILL this process after the given step, at a point the
+    // test chooses exactly (an outside kill lands wherever the run happens to be).
+    let kill_after = std::env::var("AGGLO_TEST_SIGKILL_AFTER_STEP")
+        .ok()
+        .and_then(|v| v.parse::<u64>().ok());
 
     let stop = signals::StopRequest::install();
     let layout_path = match &mcap_path {
@@ -378,6 +430,22 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
             record_error = Some(e);
             return ControlFlow::Break(());
         }
+        if let (Some(path), Some(snapshot)) = (&restart_file, s.restart_snapshot()) {
+            match agglo::restart::write(path, &scenario, snapshot) {
+                Ok(bytes) => {
+                    checkpoints_written = (checkpoints_written.0 + 1, bytes, snapshot.time())
+                }
+                Err(e) => {
+                    record_error = Some(e);
+                    return ControlFlow::Break(());
+                }
+            }
+        }
+        if kill_after == Some(s.clock().step) {
+            // Die as a killed job does: no handler runs, nothing is flushed.
+            // SAFETY: getpid and kill have no preconditions.
+            unsafe { libc::kill(libc::getpid(), libc::SIGKILL) };
+        }
         if stop.requested() {
             ControlFlow::Break(())
         } else {
@@ -412,6 +480,21 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     }
     if let Some(l) = live.take() {
         l.finish(&sim, &outcome);
+    }
+    if let Some(path) = &restart_file
+        && !args.quiet
+    {
+        let (count, bytes, t) = checkpoints_written;
+        match count {
+            0 => println!("no checkpoint reached (restart file {})", path.display()),
+            _ => println!(
+                "{count} checkpoints written to {} (the last at t = {t:e} s, {:.2} MB); \
+                 continue with `agglo run --resume {}`",
+                path.display(),
+                bytes as f64 / 1e6,
+                path.display()
+            ),
+        }
     }
     // Write what we have even when the run failed: nothing is lost.
     if let Some(t) = tables.take() {

@@ -243,6 +243,11 @@ impl EventCore {
         }
     }
 
+    /// Velocity of the grid's frame at t = 0 [m/s] (kept by restart snapshots).
+    pub fn frame_velocity(&self) -> DVec3 {
+        self.frame_velocity
+    }
+
     /// Fly bodies in `field` (set before any body is inserted). The grid's frame flies
     /// as a body of relaxation time `tau` [s] would (a primary grain's): under uniform g
     /// it falls with g, under drag it relaxes to that body's terminal velocity.
