@@ -31,7 +31,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Run a scenario to its end time.
-    Run(RunArgs),
+    Run(Box<RunArgs>),
     /// Check a scenario (or inverse-problem) file and print what it describes, with the
     /// pipeline it will run and why the other systems are left out.
     Validate {
@@ -175,7 +175,7 @@ pub fn main() -> anyhow::Result<()> {
 
 fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow::Result<()> {
     match command {
-        Command::Run(args) => run(args),
+        Command::Run(args) => run(*args),
         Command::Validate { scenario } => validate(&scenario),
         Command::Study(study) => run_study(study, cluster),
         Command::Schema { outputs: true } => {

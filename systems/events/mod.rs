@@ -409,8 +409,8 @@ pub fn schedule_next_step(
     bodies: ReadQuery,
     mut events: ResMut<StepEvents>,
     field: Option<Res<Field>>,
-    kicks: Res<ForceKicks>,
-    checkpoints: Option<Res<Checkpoints>>,
+    // The times steps must land on: force kicks and restart checkpoints.
+    (kicks, checkpoints): (Res<ForceKicks>, Option<Res<Checkpoints>>),
 ) {
     let now = clock.time;
     let field = field.as_deref().copied().unwrap_or_default();
