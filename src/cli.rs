@@ -116,8 +116,9 @@ pub struct RunArgs {
     #[arg(required_unless_present_any = ["from", "resume"], conflicts_with_all = ["from", "resume"])]
     pub scenario: Option<PathBuf>,
     /// Continue a stopped or killed run from the last checkpoint in its restart file
-    /// (written by a scene with `output.restart`): the final state and summary counters
-    /// are those of the uninterrupted run. The scenario is the one embedded in the file;
+    /// (written by a scene with `output.restart`; given the run's recording, the restart
+    /// file beside it): the final state and summary counters are those of the
+    /// uninterrupted run. The scenario is the one embedded in the file;
     /// its output paths are ignored (pass --out / --final-state / --summary / tables);
     /// checkpoints go on being written to the same file (or --restart).
     #[arg(long, value_name = "RESTART", conflicts_with_all = ["from", "set", "seed"])]
@@ -290,6 +291,8 @@ fn is_inverse_file(path: &Path) -> bool {
 
 fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut resume_from = None;
+    // The restart file resumed from (beside the recording when --resume names one).
+    let resumed_file = args.resume.as_deref().map(agglo::restart::restart_file_of);
     let mut scenario = match (&args.scenario, &args.from, &args.resume) {
         (Some(path), ..) => load(path)?,
         (None, Some(recording), _) => {
@@ -349,7 +352,7 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut sim = table_paths
         .simulation(&scenario)
         .context("setting up the scene")?;
-    if let (Some(snapshot), Some(file)) = (&resume_from, &args.resume) {
+    if let (Some(snapshot), Some(file)) = (&resume_from, &resumed_file) {
         sim.resume(snapshot)
             .with_context(|| format!("resuming from {}", file.display()))?;
         if !args.quiet {
@@ -365,7 +368,7 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     }
     let restart_file = agglo::restart::restart_path(
         &scenario,
-        args.restart.as_deref().or(args.resume.as_deref()),
+        args.restart.as_deref().or(resumed_file.as_deref()),
         mcap_path.as_deref(),
     );
     let mut checkpoints_written: (u64, u64, f64) = (0, 0, 0.0);

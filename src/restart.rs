@@ -156,8 +156,32 @@ pub fn decode(path: &Path, bytes: &[u8]) -> anyhow::Result<(Scenario, RestartSna
     Ok((scenario, snapshot))
 }
 
-/// Read a restart file.
+/// The restart file `--resume PATH` means: PATH itself, or, when PATH is a recording
+/// (an MCAP file), the restart file a run writes beside it by default, `RUN.restart`.
+pub fn restart_file_of(path: &Path) -> PathBuf {
+    let mut head = [0u8; 8];
+    let is_recording = std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head))
+        .is_ok()
+        && head == mcap::MAGIC;
+    if is_recording {
+        path.with_extension("restart")
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// Read the restart file `--resume PATH` means ([`restart_file_of`]).
 pub fn read(path: &Path) -> anyhow::Result<(Scenario, RestartSnapshot)> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    decode(path, &bytes)
+    let file = restart_file_of(path);
+    if file != path && !file.exists() {
+        bail!(
+            "{} is a recording; the restart file a run with `output.restart` writes beside \
+             it, {}, does not exist (give the restart file itself)",
+            path.display(),
+            file.display()
+        );
+    }
+    let bytes = std::fs::read(&file).with_context(|| format!("reading {}", file.display()))?;
+    decode(&file, &bytes)
 }

@@ -283,21 +283,25 @@ fn wait_for(path: &Path) {
     }
 }
 
-/// A real signal from outside, wherever the run happens to be, then resume.
-fn signalled_and_resumed(signal: i32, core: &str) {
+/// A real signal from outside, wherever the run happens to be, then resume. With
+/// `recorded`, the run records to run.mcap, its restart file goes beside it by default,
+/// and `--resume run.mcap` finds it there.
+fn signalled_and_resumed(signal: i32, core: &str, recorded: bool) {
     let dir = tempfile::tempdir().unwrap();
     let dir = dir.path();
     let path = write_scene(dir, "long", &long_scene(core));
-    let restart = dir.join("long.restart");
-    let mut child = run_cmd(&["run", s(&path), "--restart", s(&restart)], dir, "stopped")
-        .spawn()
-        .unwrap();
+    let (mcap, restart) = (dir.join("run.mcap"), dir.join("run.restart"));
+    let mut cmd = match recorded {
+        true => run_cmd(&["run", s(&path), "--out", s(&mcap)], dir, "stopped"),
+        false => run_cmd(&["run", s(&path), "--restart", s(&restart)], dir, "stopped"),
+    };
+    let mut child = cmd.spawn().unwrap();
     wait_for(&restart);
     // SAFETY: kill(2) on our own child, not yet waited for.
     unsafe { assert_eq!(libc::kill(child.id() as libc::pid_t, signal), 0) };
     let status = child.wait().unwrap();
     assert!(!status.success(), "the run ended before the signal");
-    resume(&restart, dir, "resumed");
+    resume(if recorded { &mcap } else { &restart }, dir, "resumed");
     let out = run_cmd(&["run", s(&path)], dir, "full").output().unwrap();
     assert!(out.status.success());
     assert_same_end(dir, "full", "resumed");
@@ -305,12 +309,12 @@ fn signalled_and_resumed(signal: i32, core: &str) {
 
 #[test]
 fn outside_sigkill_then_resume_ends_as_the_uninterrupted_run() {
-    signalled_and_resumed(libc::SIGKILL, "events");
+    signalled_and_resumed(libc::SIGKILL, "events", false);
 }
 
 #[test]
-fn sigterm_then_resume_ends_as_the_uninterrupted_run() {
-    signalled_and_resumed(libc::SIGTERM, "stepped");
+fn sigterm_then_resume_from_the_recording_ends_as_the_uninterrupted_run() {
+    signalled_and_resumed(libc::SIGTERM, "stepped", true);
 }
 
 #[test]
