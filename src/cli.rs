@@ -235,6 +235,13 @@ fn validate(path: &Path) -> anyhow::Result<()> {
     );
     let pipeline = s.pipeline().context("building the scene's pipeline")?;
     print!("{}", pipeline_text(&pipeline));
+    if let Some(restart) = &s.output.restart {
+        let before_end = (s.time.end / restart.every).ceil() as u64 - 1;
+        println!(
+            "restart checkpoints: every {:e} s of simulated time, {before_end} before T              (agglo run --resume continues from the last one)",
+            restart.every
+        );
+    }
     let memory = agglo::memory::MemoryEstimate::of(&s);
     println!("{}", memory.describe());
     if let Some(warning) = memory.check().map_err(anyhow::Error::msg)? {

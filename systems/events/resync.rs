@@ -52,6 +52,6 @@ fn rebuild(world: &mut World, frame_velocity: DVec3, stats: EventStats) {
     let now = world.resource::<agglo_engine::resources::SimClock>().time;
     let brute_force = world.resource::<TimeControl>().core == Core::EventsBruteForce;
     let mut core = core_from_world(world, brute_force, frame_velocity, now);
-    core.stats = stats;
+    core.carry_stats(stats);
     world.insert_resource(core);
 }
