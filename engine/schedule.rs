@@ -592,6 +592,7 @@ impl SimBuilder {
             wall_seconds: 0.0,
             rotations: self.subscriptions.into_iter().map(|(_, f)| f).collect(),
             checkpoint: None,
+            checkpoint_seconds: 0.0,
         })
     }
 }
@@ -720,6 +721,8 @@ pub struct Simulation {
     rotations: Vec<Rotate>,
     /// The snapshot taken at the end of the last step, if it was a checkpoint.
     checkpoint: Option<crate::restart::RestartSnapshot>,
+    /// Wall-clock seconds spent taking checkpoints (part of `wall_seconds`).
+    checkpoint_seconds: f64,
 }
 
 impl Simulation {
@@ -824,13 +827,21 @@ impl Simulation {
         if !checkpoints.due(now) || checkpoints.next() >= end {
             return Ok(());
         }
+        let start = std::time::Instant::now();
         checkpoints.pass(now);
         *self.world.resource_mut::<Checkpoints>() = checkpoints;
         self.bring_all_to_now();
         let snapshot = capture(&mut self.world);
         restore(&mut self.world, &snapshot).map_err(SimError::Schedule)?;
         self.checkpoint = Some(snapshot);
+        self.checkpoint_seconds += start.elapsed().as_secs_f64();
         Ok(())
+    }
+
+    /// Wall-clock seconds spent taking checkpoints so far: bringing bodies to the
+    /// checkpoint time, capturing, restoring (part of [`Simulation::wall_seconds`]).
+    pub fn checkpoint_seconds(&self) -> f64 {
+        self.checkpoint_seconds
     }
 
     /// The restart snapshot taken at the end of the step just taken, if that step

@@ -238,7 +238,8 @@ fn validate(path: &Path) -> anyhow::Result<()> {
     if let Some(restart) = &s.output.restart {
         let before_end = (s.time.end / restart.every).ceil() as u64 - 1;
         println!(
-            "restart checkpoints: every {:e} s of simulated time, {before_end} before T              (agglo run --resume continues from the last one)",
+            "restart checkpoints: every {:e} s of simulated time, {before_end} before T \
+             (agglo run --resume continues from the last one)",
             restart.every
         );
     }
@@ -308,6 +309,10 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
             s.output.summary = None;
             s.output.final_state = None;
             s.output.mcap = None;
+            // Its checkpoints are part of the run; its restart file is not this one's.
+            if let Some(restart) = s.output.restart.as_mut() {
+                restart.path = None;
+            }
             s
         }
         (None, None, Some(file)) => {
@@ -378,7 +383,8 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         args.restart.as_deref().or(resumed_file.as_deref()),
         mcap_path.as_deref(),
     );
-    let mut checkpoints_written: (u64, u64, f64) = (0, 0, 0.0);
+    // Checkpoints written: count, bytes of the last, its time [s], seconds writing.
+    let mut checkpoints_written: (u64, u64, f64, f64) = (0, 0, 0.0, 0.0);
     // For the restart tests: SIGKILL this process after the given step, at a point the
     // test chooses exactly (an outside kill lands wherever the run happens to be).
     let kill_after = std::env::var("AGGLO_TEST_SIGKILL_AFTER_STEP")
@@ -441,9 +447,12 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
             return ControlFlow::Break(());
         }
         if let (Some(path), Some(snapshot)) = (&restart_file, s.restart_snapshot()) {
+            let start = std::time::Instant::now();
             match agglo::restart::write(path, &scenario, snapshot) {
                 Ok(bytes) => {
-                    checkpoints_written = (checkpoints_written.0 + 1, bytes, snapshot.time())
+                    let (count, _, _, seconds) = checkpoints_written;
+                    let seconds = seconds + start.elapsed().as_secs_f64();
+                    checkpoints_written = (count + 1, bytes, snapshot.time(), seconds);
                 }
                 Err(e) => {
                     record_error = Some(e);
@@ -494,14 +503,16 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     if let Some(path) = &restart_file
         && !args.quiet
     {
-        let (count, bytes, t) = checkpoints_written;
+        let (count, bytes, t, writing) = checkpoints_written;
         match count {
             0 => println!("no checkpoint reached (restart file {})", path.display()),
             _ => println!(
-                "{count} checkpoints written to {} (the last at t = {t:e} s, {:.2} MB); \
+                "{count} checkpoints written to {} (the last at t = {t:e} s, {:.2} MB; \
+                 {:.3} s taking them, {writing:.3} s writing them); \
                  continue with `agglo run --resume {}`",
                 path.display(),
                 bytes as f64 / 1e6,
+                sim.checkpoint_seconds(),
                 path.display()
             ),
         }
