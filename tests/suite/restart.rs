@@ -177,10 +177,12 @@ fn write_scene(dir: &Path, name: &str, scene: &Value) -> PathBuf {
     path
 }
 
-/// `agglo run` with a final state and a summary in `dir` named after `tag`.
+/// `agglo run` in `dir` (where a default restart file goes) with a final state and a
+/// summary named after `tag`.
 fn run_cmd(args: &[&str], dir: &Path, tag: &str) -> Command {
     let mut cmd = Command::new(BIN);
-    cmd.args(args)
+    cmd.current_dir(dir)
+        .args(args)
         .args(["-q", "--final-state"])
         .arg(dir.join(format!("{tag}.csv")))
         .arg("--summary")
@@ -240,6 +242,7 @@ fn killed_and_resumed(core: &str) {
         let tag = format!("killed_{kill_at}");
         let restart = dir.join(format!("{tag}.restart"));
         let out = Command::new(BIN)
+            .current_dir(dir)
             .args(["run", s(&path), "-q", "--restart", s(&restart)])
             .env("AGGLO_TEST_SIGKILL_AFTER_STEP", kill_at.to_string())
             .stdout(Stdio::null())
