@@ -142,8 +142,10 @@ fn core_from_world(
         .collect();
     // Slots in Morton (Z-curve) order of position: bodies close in space get slots close
     // in memory, so the neighbour scans of a prediction stay in cache. Slot numbers never
-    // decide anything (ties are broken by stable ids), so any order is deterministic.
-    rows.sort_by_key(|t| (morton_key(t.position, half_width), t.id));
+    // decide anything (ties are broken by stable ids), so any order is deterministic. The
+    // key is computed once per body (the sort is O(N log N) comparisons; a checkpoint
+    // rebuilds the core, see `resync.rs`).
+    rows.sort_by_cached_key(|t| (morton_key(t.position, half_width), t.id));
     let min_radius = rows.iter().map(|t| t.radius).fold(primary, f64::min);
     let mut core = EventCore::new(
         half_width,
