@@ -168,6 +168,34 @@ fn checkpoints_change_the_event_core_only_at_rounding_level() {
     assert!(worst < 1e-9, "positions differ by {worst:e} radii");
 }
 
+/// The stepped core's state is complete at every step end: with fixed steps (no Δt bound
+/// from the neighbour list, which a checkpoint rebuilds) checkpoints change nothing.
+#[test]
+fn checkpoints_leave_a_fixed_step_stepped_run_unchanged() {
+    let fixed = json!({ "core": "stepped", "stepping": { "fixed": { "dt": 2e-6 } } });
+    let plain = Scenario::from_value(quick_demo(json!({ "time": fixed }))).unwrap();
+    let with = Scenario::from_value(quick_demo(json!({
+        "time": fixed,
+        "output": { "restart": { "every": 5e-4 } }
+    })))
+    .unwrap();
+    let mut a = Simulation::new(&plain).unwrap();
+    let mut b = Simulation::new(&with).unwrap();
+    a.run().unwrap();
+    let mut taken = 0;
+    b.run_with(|s| {
+        taken += usize::from(s.restart_snapshot().is_some());
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    assert_eq!(taken, 7);
+    assert!(
+        state(&a) == state(&b),
+        "checkpoints changed a fixed-step run"
+    );
+    assert_eq!(counts(&a), counts(&b));
+}
+
 // ---- through the binary ----
 
 /// Write `scene` to DIR/NAME.json.
