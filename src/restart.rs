@@ -4,8 +4,8 @@
 //! (engine/restart.rs: what a snapshot holds, and why a run with checkpoints and its
 //! resumed continuations are bit-identical). `agglo run` writes each snapshot to the
 //! restart file, replacing the previous one atomically (a temporary file, synced, then
-//! renamed), so a kill at any moment — SIGKILL and power loss included — leaves the
-//! last complete checkpoint in place.
+//! renamed, the directory synced), so a kill at any moment — SIGKILL and power loss
+//! included — leaves the last complete checkpoint in place.
 //!
 //! The file: the magic line `agglo-restart\n`, the format version (u32, little-endian),
 //! the CRC-32 of everything after it (u32), then two length-prefixed (u64) blocks: the
@@ -104,6 +104,16 @@ pub fn write(path: &Path, scenario: &Scenario, snapshot: &RestartSnapshot) -> an
     drop(file);
     std::fs::rename(&tmp, path)
         .with_context(|| format!("replacing {} by {}", path.display(), tmp.display()))?;
+    // The rename itself reaches the disk with its directory (a power cut after it would
+    // otherwise leave the old file, which is still complete: hence no error if the
+    // platform cannot sync a directory).
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if let Ok(dir) = std::fs::File::open(dir) {
+        let _ = dir.sync_all();
+    }
     Ok(bytes.len() as u64)
 }
 
