@@ -38,6 +38,7 @@ pub mod laws;
 pub mod observables;
 pub mod params;
 pub mod resources;
+pub mod restart;
 pub mod scene;
 pub mod schedule;
 pub mod setup;

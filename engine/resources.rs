@@ -40,7 +40,7 @@ impl CoolingLaw {
 pub const CONTACT_TOLERANCE: f64 = 1e-9;
 
 /// Simulated time and step bookkeeping.
-#[derive(Resource, Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct SimClock {
     /// Simulated time t [s] at the start of the current step.
     pub time: f64,
@@ -155,7 +155,7 @@ pub struct EnergyLedger {
 }
 
 /// Reference totals at t = 0 and the worst invariant errors seen.
-#[derive(Resource, Debug, Clone, PartialEq, Default, Serialize)]
+#[derive(Resource, Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct InvariantReport {
     pub initial_mass: f64,
     pub initial_momentum: [f64; 3],
@@ -263,7 +263,7 @@ impl StepEvents {
 /// they run when the time since the last kick reaches h, acting over that time, and
 /// steps land on the kick times, so between kicks bodies fly as the cores predict and
 /// the event core re-predicts the kicked bodies once per interval, not once per event.
-#[derive(Resource, Debug, Default, Clone, Copy, PartialEq)]
+#[derive(Resource, Debug, Default, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ForceKicks {
     /// The declared interval h [s] (None: every step).
     pub interval: Option<f64>,

@@ -455,6 +455,18 @@ impl SimBuilder {
         self
     }
 
+    /// Keep a plugin's own state in restart snapshots (engine/restart.rs): `part.save`
+    /// writes it at each checkpoint, `part.load` sets it when the world is restored from
+    /// a snapshot (in the run that took it, and in a resumed run).
+    pub fn add_restart_part(&mut self, part: crate::restart::RestartPart) -> &mut Self {
+        let mut parts = self
+            .world
+            .get_resource_or_insert_with(crate::restart::RestartParts::default);
+        parts.0.retain(|p| p.name != part.name);
+        parts.0.push(part);
+        self
+    }
+
     /// Build one plugin into the simulation.
     pub fn add_plugin(&mut self, plugin: &dyn SimPlugin) -> &mut Self {
         plugin.build(self);
@@ -505,6 +517,19 @@ impl SimBuilder {
                 ));
             };
             add(&mut self.schedule);
+        }
+        if self
+            .world
+            .contains_resource::<crate::restart::Checkpoints>()
+            && self
+                .world
+                .contains_resource::<crate::carried::CarriedState>()
+        {
+            return Err(SimError::Schedule(
+                "restart checkpoints do not cover the per-body quantities an extension \
+                 carries (SimBuilder::carry): take no checkpoints in this scene"
+                    .into(),
+            ));
         }
         if let Err(e) = self.schedule.initialize(&mut self.world) {
             let message = e.to_string(self.schedule.graph(), &self.world);
@@ -566,6 +591,8 @@ impl SimBuilder {
             core_stats: self.core_stats,
             wall_seconds: 0.0,
             rotations: self.subscriptions.into_iter().map(|(_, f)| f).collect(),
+            checkpoint: None,
+            checkpoint_seconds: 0.0,
         })
     }
 }
@@ -692,6 +719,10 @@ pub struct Simulation {
     wall_seconds: f64,
     /// Rotate the buffers of each subscribed message type (before each step).
     rotations: Vec<Rotate>,
+    /// The snapshot taken at the end of the last step, if it was a checkpoint.
+    checkpoint: Option<crate::restart::RestartSnapshot>,
+    /// Wall-clock seconds spent taking checkpoints (part of `wall_seconds`).
+    checkpoint_seconds: f64,
 }
 
 impl Simulation {
@@ -774,11 +805,57 @@ impl Simulation {
             });
         }
         let start = std::time::Instant::now();
+        self.checkpoint = None;
         for rotate in &self.rotations {
             rotate(&mut self.world);
         }
         self.schedule.run(&mut self.world);
+        let checkpoint = self.checkpoint_if_due();
         self.wall_seconds += start.elapsed().as_secs_f64();
+        checkpoint
+    }
+
+    /// At a checkpoint time (engine/restart.rs): bring every body to now, capture the
+    /// state, and restore the world from that capture, exactly as a resumed run does.
+    fn checkpoint_if_due(&mut self) -> Result<(), SimError> {
+        use crate::restart::{Checkpoints, capture, restore};
+        let Some(mut checkpoints) = self.world.get_resource::<Checkpoints>().copied() else {
+            return Ok(());
+        };
+        let now = self.clock().time;
+        let end = self.world.resource::<TimeControl>().end;
+        if !checkpoints.due(now) || checkpoints.next() >= end {
+            return Ok(());
+        }
+        let start = std::time::Instant::now();
+        checkpoints.pass(now);
+        *self.world.resource_mut::<Checkpoints>() = checkpoints;
+        self.bring_all_to_now();
+        let snapshot = capture(&mut self.world);
+        restore(&mut self.world, &snapshot).map_err(SimError::Schedule)?;
+        self.checkpoint = Some(snapshot);
+        self.checkpoint_seconds += start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Wall-clock seconds spent taking checkpoints so far: bringing bodies to the
+    /// checkpoint time, capturing, restoring (part of [`Simulation::wall_seconds`]).
+    pub fn checkpoint_seconds(&self) -> f64 {
+        self.checkpoint_seconds
+    }
+
+    /// The restart snapshot taken at the end of the step just taken, if that step
+    /// reached a checkpoint time (read it from the observer of [`Simulation::run_with`]).
+    pub fn restart_snapshot(&self) -> Option<&crate::restart::RestartSnapshot> {
+        self.checkpoint.as_ref()
+    }
+
+    /// Continue from `snapshot`, taken by a run of this same scene (same settings and
+    /// plugins): the world is restored from it as that run restored its own, so the
+    /// rest of the run is bit-identical to that run's.
+    pub fn resume(&mut self, snapshot: &crate::restart::RestartSnapshot) -> Result<(), SimError> {
+        crate::restart::restore(&mut self.world, snapshot).map_err(SimError::Schedule)?;
+        self.checkpoint = None;
         Ok(())
     }
 

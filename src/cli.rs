@@ -31,7 +31,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Run a scenario to its end time.
-    Run(RunArgs),
+    Run(Box<RunArgs>),
     /// Check a scenario (or inverse-problem) file and print what it describes, with the
     /// pipeline it will run and why the other systems are left out.
     Validate {
@@ -113,8 +113,20 @@ pub enum StudyCommand {
 #[derive(clap::Args, Debug)]
 pub struct RunArgs {
     /// Scenario file (JSON).
-    #[arg(required_unless_present = "from", conflicts_with = "from")]
+    #[arg(required_unless_present_any = ["from", "resume"], conflicts_with_all = ["from", "resume"])]
     pub scenario: Option<PathBuf>,
+    /// Continue a stopped or killed run from the last checkpoint in its restart file
+    /// (written by a scene with `output.restart`; given the run's recording, the restart
+    /// file beside it): the final state and summary counters are those of the
+    /// uninterrupted run. The scenario is the one embedded in the file;
+    /// its output paths are ignored (pass --out / --final-state / --summary / tables);
+    /// checkpoints go on being written to the same file (or --restart).
+    #[arg(long, value_name = "RESTART", conflicts_with_all = ["from", "set", "seed"])]
+    pub resume: Option<PathBuf>,
+    /// Write restart checkpoints to this file (overrides `output.restart.path`; the
+    /// interval is `output.restart.every`, e.g. `--set output.restart.every=1e-3`).
+    #[arg(long, value_name = "FILE")]
+    pub restart: Option<PathBuf>,
     /// Re-run the scenario embedded in this recording (MCAP); the output paths it names are
     /// ignored (pass --out / --final-state / --summary).
     #[arg(long, value_name = "RECORDING")]
@@ -164,7 +176,7 @@ pub fn main() -> anyhow::Result<()> {
 
 fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow::Result<()> {
     match command {
-        Command::Run(args) => run(args),
+        Command::Run(args) => run(*args),
         Command::Validate { scenario } => validate(&scenario),
         Command::Study(study) => run_study(study, cluster),
         Command::Schema { outputs: true } => {
@@ -223,6 +235,14 @@ fn validate(path: &Path) -> anyhow::Result<()> {
     );
     let pipeline = s.pipeline().context("building the scene's pipeline")?;
     print!("{}", pipeline_text(&pipeline));
+    if let Some(restart) = &s.output.restart {
+        let before_end = (s.time.end / restart.every).ceil() as u64 - 1;
+        println!(
+            "restart checkpoints: every {:e} s of simulated time, {before_end} before T \
+             (agglo run --resume continues from the last one)",
+            restart.every
+        );
+    }
     let memory = agglo::memory::MemoryEstimate::of(&s);
     println!("{}", memory.describe());
     if let Some(warning) = memory.check().map_err(anyhow::Error::msg)? {
@@ -278,17 +298,39 @@ fn is_inverse_file(path: &Path) -> bool {
 }
 
 fn run(args: RunArgs) -> anyhow::Result<()> {
-    let mut scenario = match (&args.scenario, &args.from) {
-        (Some(path), _) => load(path)?,
-        (None, Some(recording)) => {
+    let mut resume_from = None;
+    // The restart file resumed from (beside the recording when --resume names one).
+    let resumed_file = args.resume.as_deref().map(agglo::restart::restart_file_of);
+    let mut scenario = match (&args.scenario, &args.from, &args.resume) {
+        (Some(path), ..) => load(path)?,
+        (None, Some(recording), _) => {
             let mut s = agglo::record::scenario_from_recording(recording)?;
             // The recording's own output paths would overwrite files (even the recording).
             s.output.summary = None;
             s.output.final_state = None;
             s.output.mcap = None;
+            // Its checkpoints are part of the run; its restart file is not this one's.
+            if let Some(restart) = s.output.restart.as_mut() {
+                restart.path = None;
+            }
             s
         }
-        (None, None) => anyhow::bail!("give a scenario file or --from RECORDING"),
+        (None, None, Some(file)) => {
+            let (mut s, snapshot) = agglo::restart::read(file)?;
+            // The stopped run's outputs would be overwritten by this continuation's.
+            s.output.summary = None;
+            s.output.final_state = None;
+            s.output.mcap = None;
+            s.output.series = None;
+            s.output.sizes = None;
+            s.output.snapshots = None;
+            s.output.collisions = None;
+            resume_from = Some(snapshot);
+            s
+        }
+        (None, None, None) => {
+            anyhow::bail!("give a scenario file, --from RECORDING or --resume RESTART")
+        }
     };
     if !args.set.is_empty() {
         scenario = scenario.with_settings(&args.set)?;
@@ -322,6 +364,32 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     let mut sim = table_paths
         .simulation(&scenario)
         .context("setting up the scene")?;
+    if let (Some(snapshot), Some(file)) = (&resume_from, &resumed_file) {
+        sim.resume(snapshot)
+            .with_context(|| format!("resuming from {}", file.display()))?;
+        if !args.quiet {
+            println!(
+                "resuming {} at t = {:e} s (step {}, {} bodies) from {}",
+                scenario.name,
+                snapshot.time(),
+                snapshot.clock.step,
+                snapshot.bodies.len(),
+                file.display()
+            );
+        }
+    }
+    let restart_file = agglo::restart::restart_path(
+        &scenario,
+        args.restart.as_deref().or(resumed_file.as_deref()),
+        mcap_path.as_deref(),
+    );
+    // Checkpoints written: count, bytes of the last, its time [s], seconds writing.
+    let mut checkpoints_written: (u64, u64, f64, f64) = (0, 0, 0.0, 0.0);
+    // For the restart tests: SIGKILL this process after the given step, at a point the
+    // test chooses exactly (an outside kill lands wherever the run happens to be).
+    let kill_after = std::env::var("AGGLO_TEST_SIGKILL_AFTER_STEP")
+        .ok()
+        .and_then(|v| v.parse::<u64>().ok());
 
     let stop = signals::StopRequest::install();
     let layout_path = match &mcap_path {
@@ -378,6 +446,25 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
             record_error = Some(e);
             return ControlFlow::Break(());
         }
+        if let (Some(path), Some(snapshot)) = (&restart_file, s.restart_snapshot()) {
+            let start = std::time::Instant::now();
+            match agglo::restart::write(path, &scenario, snapshot) {
+                Ok(bytes) => {
+                    let (count, _, _, seconds) = checkpoints_written;
+                    let seconds = seconds + start.elapsed().as_secs_f64();
+                    checkpoints_written = (count + 1, bytes, snapshot.time(), seconds);
+                }
+                Err(e) => {
+                    record_error = Some(e);
+                    return ControlFlow::Break(());
+                }
+            }
+        }
+        if kill_after == Some(s.clock().step) {
+            // Die as a killed job does: no handler runs, nothing is flushed.
+            // SAFETY: getpid and kill have no preconditions.
+            unsafe { libc::kill(libc::getpid(), libc::SIGKILL) };
+        }
         if stop.requested() {
             ControlFlow::Break(())
         } else {
@@ -412,6 +499,23 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     }
     if let Some(l) = live.take() {
         l.finish(&sim, &outcome);
+    }
+    if let Some(path) = &restart_file
+        && !args.quiet
+    {
+        let (count, bytes, t, writing) = checkpoints_written;
+        match count {
+            0 => println!("no checkpoint reached (restart file {})", path.display()),
+            _ => println!(
+                "{count} checkpoints written to {} (the last at t = {t:e} s, {:.2} MB; \
+                 {:.3} s taking them, {writing:.3} s writing them); \
+                 continue with `agglo run --resume {}`",
+                path.display(),
+                bytes as f64 / 1e6,
+                sim.checkpoint_seconds(),
+                path.display()
+            ),
+        }
     }
     // Write what we have even when the run failed: nothing is lost.
     if let Some(t) = tables.take() {

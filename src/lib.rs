@@ -32,6 +32,7 @@ pub mod live;
 pub mod memory;
 pub mod output;
 pub mod record;
+pub mod restart;
 pub mod scenario;
 pub mod study;
 

@@ -456,6 +456,9 @@ impl Scenario {
             v.positive("output.recording.interval", dt);
         }
         v.positive("output.recording.playback_seconds", r.playback_seconds);
+        if let Some(restart) = &self.output.restart {
+            v.positive("output.restart.every", restart.every);
+        }
         v.issues.extend(self.field.issues());
         if let Some(schedule) = &self.output.sampling {
             for (field, allowed, got) in schedule.problems() {
@@ -691,6 +694,11 @@ impl Scene for Scenario {
         world.insert_resource(self.diagnostics.clone());
         if !self.field.is_none() {
             world.insert_resource(self.field);
+        }
+        if let Some(restart) = &self.output.restart {
+            // The checkpoints are part of the run (engine/restart.rs): every simulation
+            // of this scenario takes them, whatever writes them out.
+            world.insert_resource(agglo_engine::restart::Checkpoints::every(restart.every));
         }
         world.insert_resource(self.clone());
     }

@@ -219,6 +219,28 @@ pub struct ContactScratch {
     overlapping_now: Vec<(u64, u64)>,
 }
 
+impl ContactScratch {
+    /// The restart part of the stepped core (engine/restart.rs): the pairs found
+    /// overlapping at the last step (a missed contact is a pair that newly overlaps) are
+    /// saved; on restore they are set and the neighbour list is rebuilt at the next step.
+    pub fn restart_part() -> agglo_engine::restart::RestartPart {
+        agglo_engine::restart::RestartPart {
+            name: "stepped_contacts",
+            save: |world| {
+                let pairs = &world.resource::<ContactScratch>().overlapping_before;
+                postcard::to_allocvec(pairs).expect("pairs always encode")
+            },
+            load: |world, bytes| {
+                let pairs: Vec<(u64, u64)> =
+                    postcard::from_bytes(bytes).map_err(|e| e.to_string())?;
+                world.resource_mut::<ContactScratch>().overlapping_before = pairs;
+                world.resource_mut::<NeighbourTable>().invalidate();
+                Ok(())
+            },
+        }
+    }
+}
+
 /// The system.
 pub fn detect_contacts(
     bodies: BodyQuery,

@@ -235,6 +235,19 @@ impl RunningTotals {
         self.sums[k].0 + self.sums[k].1
     }
 
+    /// Start again from the totals over every body now in the world (the restart part
+    /// of the event core's checks: at a checkpoint the bodies are brought to the current
+    /// time, which the running totals do not follow, so they are recomputed — in the
+    /// run that takes the checkpoint and in a resumed one alike).
+    pub fn recompute(world: &mut World) -> Result<(), String> {
+        let start = crate::initial_totals(world);
+        let mut running = world
+            .get_resource_mut::<RunningTotals>()
+            .ok_or("the scene keeps no running totals")?;
+        running.reset(&start);
+        Ok(())
+    }
+
     /// The running totals (without Σ m|v|, which is not kept).
     pub fn totals(&self) -> Totals {
         Totals {

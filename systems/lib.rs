@@ -54,11 +54,13 @@ impl SimPlugin for ContactPlugin {
             .add_systems(StepSystems::Contact, events::pop_due_contacts)
             .add_systems(StepSystems::TimeStep, events::schedule_next_step)
             .add_systems(StepSystems::Boundary, events::report_overlaps)
-            .report_core_stats(|world| world.resource::<events::core::EventCore>().stats);
+            .report_core_stats(|world| world.resource::<events::core::EventCore>().stats)
+            .add_restart_part(events::resync::restart_part());
             return;
         }
         sim.init_resource::<contact::NeighbourTable>()
             .init_resource::<contact::ContactScratch>()
+            .add_restart_part(contact::ContactScratch::restart_part())
             .add_systems(StepSystems::Contact, contact::detect_contacts)
             .add_systems(StepSystems::TimeStep, time_step::choose_time_step);
     }
@@ -110,7 +112,8 @@ impl SimPlugin for ImpactPlugin {
                 impact::default_collapse_time(b0, &velocities)
             });
             if t_c > 0.0 {
-                sim.insert_resource(impact::CollapseGuard::new(t_c));
+                sim.insert_resource(impact::CollapseGuard::new(t_c))
+                    .add_restart_part(impact::CollapseGuard::restart_part());
             }
         }
     }
@@ -222,7 +225,12 @@ impl SimPlugin for DiagnosticsPlugin {
             let start = initial_totals(sim.world_mut());
             let full_every = d.every.max(sim.info().initial_bodies as u64);
             sim.insert_resource(diagnostics::RunningTotals::new(&start, full_every))
-                .add_systems(StepSystems::Diagnostics, diagnostics::check_step_totals);
+                .add_systems(StepSystems::Diagnostics, diagnostics::check_step_totals)
+                .add_restart_part(agglo_engine::restart::RestartPart {
+                    name: "running_totals",
+                    save: |_| Vec::new(),
+                    load: |world, _| diagnostics::RunningTotals::recompute(world),
+                });
         } else if d.invariants {
             sim.add_systems(StepSystems::Diagnostics, diagnostics::check_invariants);
         } else {
@@ -276,7 +284,7 @@ impl AddDefaultPlugins for SimBuilder {
 }
 
 /// Totals over the bodies now in the world.
-fn initial_totals(world: &mut World) -> diagnostics::Totals {
+pub(crate) fn initial_totals(world: &mut World) -> diagnostics::Totals {
     let c = world.resource::<Material>().C;
     let rows: Vec<_> = world
         .query_filtered::<(&Mass, &Velocity, &Temperature), With<Particle>>()

@@ -134,6 +134,9 @@ pub struct Output {
     /// Recording options.
     #[serde(default)]
     pub recording: Recording,
+    /// Restart checkpoints (`agglo run --resume`); none when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restart: Option<crate::restart::RestartSettings>,
 }
 
 fn is_auto(bins: &SizeBins) -> bool {

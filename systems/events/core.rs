@@ -290,6 +290,19 @@ impl EventCore {
         }
     }
 
+    /// Carry on the counts of the core this one replaces (the restart's rebuild,
+    /// `resync.rs`). The renumbering schedule restarts from them: a rebuilt core's slots
+    /// are already in Z-order.
+    pub fn carry_stats(&mut self, stats: EventStats) {
+        self.stats = stats;
+        self.predictions_at_renumber = stats.predictions;
+    }
+
+    /// Velocity of the grid's frame at t = 0 [m/s] (kept by restart snapshots).
+    pub fn frame_velocity(&self) -> DVec3 {
+        self.frame_velocity
+    }
+
     /// Fly bodies in `field` (set before any body is inserted). The grid's frame flies
     /// as a body of relaxation time `tau` [s] would (a primary grain's): under uniform g
     /// it falls with g, under drag it relaxes to that body's terminal velocity.

@@ -20,6 +20,7 @@
 pub mod calendar;
 pub mod cells;
 pub mod core;
+pub mod resync;
 
 use bevy_ecs::prelude::*;
 
@@ -38,6 +39,7 @@ use agglo_engine::components::{
 use agglo_engine::resources::{
     BoxGeometry, Contact, ContactList, Counters, ForceKicks, SimClock, StepEvents,
 };
+use agglo_engine::restart::Checkpoints;
 use agglo_engine::totals::Totals;
 
 /// Events closer than this (relative to t) count as simultaneous.
@@ -80,11 +82,13 @@ fn horizon(now: f64) -> f64 {
 /// Build the core from the bodies in the world (at t = 0) and predict every body; the
 /// scene's field, if any, decides how bodies fly (docs/model.md §4.7).
 pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
-    let half_width = world.resource::<BoxGeometry>().half_width;
-    let primary = world.resource::<PrimaryGrain>().radius;
-    let primary_mass = world.resource::<PrimaryGrain>().mass;
-    let field = world.get_resource::<Field>().copied().unwrap_or_default();
     // The grid moves with the cloud's mean velocity (see `EventCore`).
+    let frame_velocity = mean_velocity(world);
+    core_from_world(world, brute_force, frame_velocity, 0.0)
+}
+
+/// The mass-weighted mean velocity of the bodies in the world [m/s].
+fn mean_velocity(world: &mut World) -> DVec3 {
     let mut momentum = DVec3::ZERO;
     let mut mass = 0.0;
     for (m, v) in world
@@ -94,11 +98,27 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
         momentum += m.0 * v.0;
         mass += m.0;
     }
-    let frame_velocity = if mass > 0.0 {
+    if mass > 0.0 {
         momentum / mass
     } else {
         DVec3::ZERO
-    };
+    }
+}
+
+/// The core of the bodies in the world, every body predicted from `now` [s] (all must
+/// be at their state at `now` or before), with the grid's frame flying from
+/// `frame_velocity` at t = 0. A pure function of the world: the restart's rebuild
+/// (`resync.rs`) calls it too.
+fn core_from_world(
+    world: &mut World,
+    brute_force: bool,
+    frame_velocity: DVec3,
+    now: f64,
+) -> EventCore {
+    let half_width = world.resource::<BoxGeometry>().half_width;
+    let primary = world.resource::<PrimaryGrain>().radius;
+    let primary_mass = world.resource::<PrimaryGrain>().mass;
+    let field = world.get_resource::<Field>().copied().unwrap_or_default();
     let mut rows: Vec<Trajectory> = world
         .query_filtered::<(
             Entity,
@@ -122,8 +142,10 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
         .collect();
     // Slots in Morton (Z-curve) order of position: bodies close in space get slots close
     // in memory, so the neighbour scans of a prediction stay in cache. Slot numbers never
-    // decide anything (ties are broken by stable ids), so any order is deterministic.
-    rows.sort_by_key(|t| (morton_key(t.position, half_width), t.id));
+    // decide anything (ties are broken by stable ids), so any order is deterministic. The
+    // key is computed once per body (the sort is O(N log N) comparisons; a checkpoint
+    // rebuilds the core, see `resync.rs`).
+    rows.sort_by_cached_key(|t| (morton_key(t.position, half_width), t.id));
     let min_radius = rows.iter().map(|t| t.radius).fold(primary, f64::min);
     let mut core = EventCore::new(
         half_width,
@@ -138,7 +160,7 @@ pub fn build_core(world: &mut World, brute_force: bool) -> EventCore {
     core.set_field(field, tau0);
     let slots: Vec<u32> = rows.into_iter().map(|t| core.insert(t)).collect();
     for slot in slots {
-        core.schedule(slot, 0.0);
+        core.schedule(slot, now);
     }
     core
 }
@@ -362,17 +384,21 @@ fn step_to_next_event(
     end: f64,
     dt_max: f64,
     kicks: &ForceKicks,
+    checkpoint: Option<f64>,
 ) -> f64 {
     let now = clock.time;
     let remaining = (end - now).max(0.0);
     let next = core.peek().map_or(f64::INFINITY, |(_, e)| e.time);
     // Land on the next kick of forces that declared an interval.
     let to_kick = kicks.next().map_or(f64::INFINITY, |t| (t - now).max(0.0));
+    // And on the next checkpoint, where the core is rebuilt (`resync.rs`).
+    let to_checkpoint = checkpoint.map_or(f64::INFINITY, |t| (t - now).max(0.0));
     (next - now)
         .max(0.0)
         .min(dt_max)
         .min(remaining)
         .min(to_kick)
+        .min(to_checkpoint)
 }
 
 /// Stage `TimeStep`: re-predict what changed and choose Δt to the next contact.
@@ -383,7 +409,8 @@ pub fn schedule_next_step(
     bodies: ReadQuery,
     mut events: ResMut<StepEvents>,
     field: Option<Res<Field>>,
-    kicks: Res<ForceKicks>,
+    // The times steps must land on: force kicks and restart checkpoints.
+    (kicks, checkpoints): (Res<ForceKicks>, Option<Res<Checkpoints>>),
 ) {
     let now = clock.time;
     let field = field.as_deref().copied().unwrap_or_default();
@@ -395,7 +422,8 @@ pub fn schedule_next_step(
         core.renumber(now);
     }
     clock.clamped_at_min = false;
-    clock.dt = step_to_next_event(&core, &clock, time.end, dt_max, &kicks);
+    let checkpoint = checkpoints.map(|c| c.next());
+    clock.dt = step_to_next_event(&core, &clock, time.end, dt_max, &kicks, checkpoint);
 }
 
 /// Count the core's missed contacts into the run's counters (stage `Boundary`).

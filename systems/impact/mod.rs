@@ -134,6 +134,30 @@ impl CollapseGuard {
         }
     }
 
+    /// The restart part of the TC model (engine/restart.rs): each body's last impact
+    /// time, saved in id order.
+    pub fn restart_part() -> agglo_engine::restart::RestartPart {
+        agglo_engine::restart::RestartPart {
+            name: "collapse_guard",
+            save: |world| {
+                let mut last: Vec<(u64, f64)> = world
+                    .resource::<CollapseGuard>()
+                    .last
+                    .iter()
+                    .map(|(&id, &t)| (id, t))
+                    .collect();
+                last.sort_unstable_by_key(|x| x.0);
+                postcard::to_allocvec(&last).expect("times always encode")
+            },
+            load: |world, bytes| {
+                let last: Vec<(u64, f64)> =
+                    postcard::from_bytes(bytes).map_err(|e| e.to_string())?;
+                world.resource_mut::<CollapseGuard>().last = last.into_iter().collect();
+                Ok(())
+            },
+        }
+    }
+
     /// The restitution the pair (id_a, id_b) takes at time `now` [s] under constant `e`,
     /// and whether the TC model made it elastic; records the impact.
     pub fn restitution(&mut self, id_a: u64, id_b: u64, now: f64, e: f64) -> (f64, bool) {

@@ -27,6 +27,7 @@ mod pipeline_from_outside;
 mod properties;
 mod readings;
 mod record;
+mod restart;
 mod scenario_input;
 mod scenarios;
 mod self_contained;
