@@ -391,10 +391,16 @@ pub fn place_spheres(
 ) -> Result<Vec<DVec3>, (usize, u64)> {
     let side = 2.0 * half;
     let min_dist2 = (2.0 * b) * (2.0 * b);
-    // Cells at least one diameter wide: overlaps can only come from the 27 around.
-    let n = ((side / (2.0 * b)).floor() as usize).clamp(1, 256);
+    // Cells at least one diameter wide: overlaps can only come from the 27 around. At
+    // most 8 cells per sphere, each cell a list threaded through `next` (a head per cell,
+    // a link per sphere): a Vec per cell cost 24 bytes a cell and an allocation per
+    // sphere, 300 MB written and freed again at N = 1e6.
+    let by_count = (8.0 * count.max(1) as f64).cbrt().ceil() as usize;
+    let n = ((side / (2.0 * b)).floor() as usize).clamp(1, by_count.max(3));
     let width = side / n as f64;
-    let mut cells: Vec<Vec<u32>> = vec![Vec::new(); n * n * n];
+    const EMPTY: u32 = u32::MAX;
+    let mut heads: Vec<u32> = vec![EMPTY; n * n * n];
+    let mut next: Vec<u32> = Vec::with_capacity(count);
     let mut positions: Vec<DVec3> = Vec::with_capacity(count);
     let budget = ATTEMPTS_PER_PARTICLE * count as u64 + 10_000;
     let mut attempts = 0u64;
@@ -425,9 +431,13 @@ pub fn place_spheres(
                 for dy in -1..=1 {
                     for dx in -1..=1 {
                         let cell = (wrap(2, dz) * n + wrap(1, dy)) * n + wrap(0, dx);
-                        if cells[cell].iter().any(|&j| overlaps(j)) {
-                            fits = false;
-                            break 'search;
+                        let mut j = heads[cell];
+                        while j != EMPTY {
+                            if overlaps(j) {
+                                fits = false;
+                                break 'search;
+                            }
+                            j = next[j as usize];
                         }
                     }
                 }
@@ -436,7 +446,8 @@ pub fn place_spheres(
         };
         if fits {
             let cell = ((c[2] as usize * n) + c[1] as usize) * n + c[0] as usize;
-            cells[cell].push(positions.len() as u32);
+            next.push(heads[cell]);
+            heads[cell] = positions.len() as u32;
             positions.push(r);
         }
     }
