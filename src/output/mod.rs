@@ -6,6 +6,7 @@
 //! with its unit: [`schema`], docs/outputs.md.
 
 pub mod collisions;
+pub mod offload;
 pub mod run;
 pub mod sampling;
 pub mod schema;

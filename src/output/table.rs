@@ -7,13 +7,19 @@
 //! UTF8 BYTE_ARRAY), zstd-compressed, through the crate's low-level column writer (no
 //! Arrow). Rows are buffered per column and written as a row group every
 //! [`ROW_GROUP_ROWS`] rows, so memory stays bounded however long the run.
+//!
+//! **Threads.** [`TableWriter::row`] only copies the cells into a batch; every
+//! [`BATCH_ROWS`] rows the batch goes to the table's writer thread
+//! ([`super::offload`]), which formats the CSV or compresses the Parquet columns and
+//! writes the file, rows in the order they came, so the bytes are those one thread
+//! writes. At most [`QUEUED_BATCHES`] batches wait for it.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;
 use std::sync::Arc;
 
-use anyhow::{Context, bail};
+use anyhow::{Context, bail, ensure};
 use parquet::basic::{Compression, ZstdLevel};
 use parquet::data_type::{ByteArray, ByteArrayType, DoubleType, Int64Type};
 use parquet::file::properties::WriterProperties;
@@ -23,8 +29,18 @@ use parquet::file::writer::SerializedFileWriter;
 use parquet::record::Field;
 use parquet::schema::parser::parse_message_type;
 
+use super::offload::{Offload, Sink, Threading};
+
 /// Rows buffered before a Parquet row group is written (13 DOUBLE columns: ~14 MB).
 pub const ROW_GROUP_ROWS: usize = 131_072;
+
+/// Rows copied on the simulation thread before they are handed to the writer thread
+/// (13 columns: 0.85 MB a batch): few enough hand-overs that they cost nothing, small
+/// enough that the writer starts early.
+pub const BATCH_ROWS: usize = 4096;
+
+/// Batches that may wait for a table's writer thread: the memory a slow disk can take.
+pub const QUEUED_BATCHES: usize = 4;
 
 /// What a column holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,12 +110,66 @@ pub fn is_parquet(path: &Path) -> bool {
 
 /// A table being written.
 pub struct TableWriter {
-    columns: Vec<Column>,
-    sink: Sink,
+    columns: usize,
+    /// `None` once finished.
+    out: Option<Offload<TableSink>>,
+    batch: Batch,
     rows: u64,
 }
 
-enum Sink {
+/// Rows copied for the writer thread: `columns` cells a row, text in one string.
+#[derive(Default)]
+struct Batch {
+    cells: Vec<OwnedCell>,
+    text: String,
+    rows: usize,
+}
+
+/// A [`Cell`] that owns its value; text is a range of [`Batch::text`].
+#[derive(Clone, Copy)]
+enum OwnedCell {
+    F(f64),
+    I(i64),
+    S(usize, usize),
+}
+
+/// The file and its format, on the writer thread.
+struct TableSink {
+    columns: Vec<Column>,
+    format: Format,
+}
+
+impl Sink for TableSink {
+    type Job = Batch;
+    type Output = ();
+
+    fn take(&mut self, batch: Batch) -> anyhow::Result<()> {
+        let mut cells = Vec::with_capacity(self.columns.len());
+        for row in batch.cells.chunks(self.columns.len()) {
+            cells.clear();
+            cells.extend(row.iter().map(|c| match *c {
+                OwnedCell::F(x) => Cell::F(x),
+                OwnedCell::I(n) => Cell::I(n),
+                OwnedCell::S(a, b) => Cell::S(&batch.text[a..b]),
+            }));
+            self.format.row(&cells)?;
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> anyhow::Result<()> {
+        match self.format {
+            Format::Csv(mut out) => out.flush()?,
+            Format::Parquet(mut p) => {
+                p.flush()?;
+                p.writer.close()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+enum Format {
     Csv(BufWriter<File>),
     Parquet(Box<ParquetSink>),
 }
@@ -121,7 +191,7 @@ impl TableWriter {
     /// `name` names the Parquet schema.
     pub fn create(path: &Path, name: &str, columns: &[Column]) -> anyhow::Result<Self> {
         let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
-        let sink = if is_parquet(path) {
+        let format = if is_parquet(path) {
             let fields: String = columns
                 .iter()
                 .map(|c| match c.kind {
@@ -145,7 +215,7 @@ impl TableWriter {
                     Kind::Text => Buffer::S(Vec::new()),
                 })
                 .collect();
-            Sink::Parquet(Box::new(ParquetSink {
+            Format::Parquet(Box::new(ParquetSink {
                 writer,
                 buffers,
                 buffered: 0,
@@ -154,11 +224,20 @@ impl TableWriter {
             let mut out = BufWriter::new(file);
             let header: Vec<&str> = columns.iter().map(|c| c.name).collect();
             writeln!(out, "{}", header.join(","))?;
-            Sink::Csv(out)
+            Format::Csv(out)
+        };
+        let sink = TableSink {
+            columns: columns.to_vec(),
+            format,
         };
         Ok(Self {
-            columns: columns.to_vec(),
-            sink,
+            columns: columns.len(),
+            out: Some(Offload::new(
+                sink,
+                path,
+                Threading::from_env(QUEUED_BATCHES),
+            )?),
+            batch: Batch::default(),
             rows: 0,
         })
     }
@@ -168,12 +247,63 @@ impl TableWriter {
         self.rows
     }
 
-    /// Append one row: one cell per column, of the column's kind.
+    /// Append one row: one cell per column, of the column's kind. Errors writing the
+    /// file come from a later call (or [`TableWriter::finish`]), naming the file.
     pub fn row(&mut self, cells: &[Cell]) -> anyhow::Result<()> {
-        debug_assert_eq!(cells.len(), self.columns.len());
+        let out = self.out.as_mut().context("a row after finish (a bug)")?;
+        ensure!(
+            cells.len() == self.columns,
+            "a row of {} cells for {} columns of {} (a bug)",
+            cells.len(),
+            self.columns,
+            out.path().display()
+        );
         self.rows += 1;
-        match &mut self.sink {
-            Sink::Csv(out) => {
+        let batch = &mut self.batch;
+        batch.cells.extend(cells.iter().map(|c| match *c {
+            Cell::F(x) => OwnedCell::F(x),
+            Cell::I(n) => OwnedCell::I(n),
+            Cell::S(text) => {
+                let start = batch.text.len();
+                batch.text.push_str(text);
+                OwnedCell::S(start, batch.text.len())
+            }
+        }));
+        batch.rows += 1;
+        if batch.rows >= BATCH_ROWS {
+            out.send(std::mem::take(batch))?;
+        }
+        Ok(())
+    }
+
+    /// Write what is buffered and close the file (waits for its writer thread).
+    pub fn finish(mut self) -> anyhow::Result<()> {
+        let mut out = self.out.take().context("finished twice (a bug)")?;
+        let last = std::mem::take(&mut self.batch);
+        if last.rows > 0 {
+            out.send(last)?;
+        }
+        out.finish()
+    }
+}
+
+impl Drop for TableWriter {
+    /// Not finished (an early return): the rows taken still reach the file, as they did
+    /// through a `BufWriter` when tables were written on the simulation thread.
+    fn drop(&mut self) {
+        if let Some(out) = self.out.as_mut()
+            && self.batch.rows > 0
+        {
+            let _ = out.send(std::mem::take(&mut self.batch));
+        }
+    }
+}
+
+impl Format {
+    /// Write one row.
+    fn row(&mut self, cells: &[Cell]) -> anyhow::Result<()> {
+        match self {
+            Format::Csv(out) => {
                 let mut floats = ryu::Buffer::new();
                 let mut ints = itoa::Buffer::new();
                 for (k, cell) in cells.iter().enumerate() {
@@ -193,7 +323,7 @@ impl TableWriter {
                 }
                 out.write_all(b"\n")?;
             }
-            Sink::Parquet(p) => {
+            Format::Parquet(p) => {
                 for (buffer, cell) in p.buffers.iter_mut().zip(cells) {
                     match (buffer, cell) {
                         (Buffer::F(v), Cell::F(x)) => v.push(*x),
@@ -206,18 +336,6 @@ impl TableWriter {
                 if p.buffered >= ROW_GROUP_ROWS {
                     p.flush()?;
                 }
-            }
-        }
-        Ok(())
-    }
-
-    /// Write what is buffered and close the file.
-    pub fn finish(self) -> anyhow::Result<()> {
-        match self.sink {
-            Sink::Csv(mut out) => out.flush()?,
-            Sink::Parquet(mut p) => {
-                p.flush()?;
-                p.writer.close()?;
             }
         }
         Ok(())

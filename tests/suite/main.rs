@@ -36,3 +36,4 @@ mod stepping;
 mod study;
 mod unfinishable_runs;
 mod worked_examples;
+mod writers;
