@@ -517,9 +517,12 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
             ),
         }
     }
-    // Write what we have even when the run failed: nothing is lost.
-    if let Some(t) = tables.take() {
-        t.finish(&sim)?;
+    // Write what we have even when the run failed: nothing is lost. A table whose
+    // writer failed during the run fails again here: the first error is the one told.
+    if let Some(t) = tables.take()
+        && let Err(e) = t.finish(&sim)
+    {
+        record_error.get_or_insert(e);
     }
     let bodies = sim.bodies();
     let summary = Summary::new(&sim, &bodies);
