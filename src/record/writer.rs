@@ -72,7 +72,7 @@ pub struct RecordingReport {
 /// `/particles` snapshots (and smaller messages) that may wait for the writer thread:
 /// each holds a copy of the bodies (96 bytes a body: 9.6 MB at 1e5 bodies), so this
 /// bounds the memory a slow disk can take, and how far the file may lag the run.
-pub const QUEUED_JOBS: usize = 2;
+pub const QUEUED_JOBS: usize = 1;
 
 /// Records one run. See the module docs.
 pub struct Recorder {
