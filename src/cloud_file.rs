@@ -13,7 +13,7 @@ use std::path::Path;
 use anyhow::{Context, bail};
 
 use crate::cloud::PlacedBody;
-use crate::output::run::SNAPSHOT_COLUMNS;
+use crate::output::snapshots::SNAPSHOT_COLUMNS;
 use crate::output::table::read_table;
 
 /// The bodies of the table at `path`, in its row order.

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Peer benchmark: run the same periodic particle cloud (scenes/peer_{merge,bounce}_N.json)
 # in agglo and in REBOUND, one thread each, and append one CSV row per code per scene.
+# scenes/peer_aggregation_N.json (ballistic aggregation, Maxwellian velocities) runs in
+# agglo only: bench.py has no counterpart of its velocity draw.
 #
 # Usage (from anywhere):
 #   benches/peers/run.sh [--with-rebound | --agglo-only] [--scenes "merge:1000 bounce:1000"]
@@ -8,7 +10,7 @@
 #
 #   --with-rebound   run agglo, then REBOUND, for each scene (the default)
 #   --agglo-only     skip REBOUND
-#   --scenes LIST    space-separated VARIANT:N, VARIANT in {merge, bounce};
+#   --scenes LIST    space-separated VARIANT:N, VARIANT in {merge, bounce, aggregation};
 #                    default "merge:1000 merge:10000 merge:100000 bounce:1000 bounce:10000"
 #   --out FILE       CSV to append to (header written if the file is new or empty);
 #                    default benches/peers/results.csv
@@ -58,7 +60,8 @@ command -v python3 >/dev/null 2>&1 || die "python3 is needed to read the JSON ou
 [ -x "$TIME_BIN" ] || die "GNU time not found at $TIME_BIN (apt-get install time)"
 
 for s in $SCENES; do
-    [[ "$s" =~ ^(merge|bounce):[0-9]+$ ]] || die "bad scene '$s' (want merge:N or bounce:N)"
+    [[ "$s" =~ ^(merge|bounce|aggregation):[0-9]+$ ]] \
+        || die "bad scene '$s' (want merge:N, bounce:N or aggregation:N)"
     f="$SCENES_DIR/peer_${s%%:*}_${s#*:}.json"
     [ -f "$f" ] || die "no scene file $f"
 done
@@ -120,6 +123,7 @@ PY
     row agglo "$variant" "$n" "$wall" "$steps" "$coll" "$final" "$bf" "$rss" "$pwall"
 
     [ "$WITH_REBOUND" = 1 ] || continue
+    [ "$variant" != aggregation ] || { log "REBOUND: no aggregation scene (agglo only)"; continue; }
 
     # REBOUND: bench.py prints one JSON line; its wall_s excludes the (Python) placement.
     case "$variant" in

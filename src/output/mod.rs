@@ -12,6 +12,7 @@ pub mod sampling;
 pub mod schema;
 pub mod series;
 pub mod sizes;
+pub mod snapshots;
 pub mod table;
 
 use std::io::Write;

@@ -20,24 +20,8 @@ use super::collisions::{self, CollisionLog};
 use super::sampling::{SampleSchedule, Sampler};
 use super::series::{Pending, SERIES_COLUMNS, series_row};
 use super::sizes::{self, SIZES_COLUMNS, SizeBins};
-use super::table::{Cell, Column, TableWriter, float, int};
-
-/// The columns of `--snapshots`: the time, then the columns of `--final-state`.
-pub const SNAPSHOT_COLUMNS: &[Column] = &[
-    float("t", "s", "simulated time of the sample"),
-    int("id", "-", "stable body id (never reused)"),
-    float("x", "m", "position, x, in [−D, D)"),
-    float("y", "m", "position, y"),
-    float("z", "m", "position, z"),
-    float("vx", "m/s", "velocity, x"),
-    float("vy", "m/s", "velocity, y"),
-    float("vz", "m/s", "velocity, z"),
-    float("mass", "kg", "mass"),
-    float("radius", "m", "radius"),
-    float("temperature", "K", "temperature θ"),
-    float("hardness", "Pa", "hardness H(θ)"),
-    float("primaries", "-", "primary grains in the body"),
-];
+use super::snapshots::SNAPSHOT_COLUMNS;
+use super::table::{Cell, Column, TableWriter, float};
 
 /// Where the tables go and when they are sampled, from the flags over the `output`
 /// section.

@@ -4,9 +4,9 @@
 //! real summary is listed here.
 
 use super::collisions::COLLISION_COLUMNS;
-use super::run::SNAPSHOT_COLUMNS;
 use super::series::SERIES_COLUMNS;
 use super::sizes::SIZES_COLUMNS;
+use super::snapshots::SNAPSHOT_COLUMNS;
 use super::table::{Column, Kind};
 
 /// One key of the summary JSON (nested keys joined with `.`), with its unit.
