@@ -1,9 +1,9 @@
 //! Restarts bit for bit (engine/restart.rs, src/restart.rs): a run with checkpoints,
 //! resumed from any of its snapshots, ends in exactly the state of the uninterrupted run
 //! — in process from every snapshot, on both cores, in fields and under the constant
-//! restitution law; and through the binary after SIGKILL at chosen steps, after an
-//! outside SIGKILL and after SIGTERM. A restart file with a flipped digit is refused,
-//! naming the file.
+//! restitution law; and through the binary after SIGKILL at chosen steps, and after an
+//! outside SIGKILL, SIGINT, SIGTERM or SIGHUP (each on both cores). A restart file with
+//! a flipped digit is refused, naming the file.
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -421,4 +421,34 @@ fn a_scene_carrying_extension_quantities_refuses_checkpoints() {
     );
     // Without checkpoints the same scene builds.
     build(json!({})).unwrap();
+}
+
+#[test]
+fn sigint_then_resume_ends_as_the_uninterrupted_run_event_core() {
+    signalled_and_resumed(libc::SIGINT, "events", true);
+}
+
+#[test]
+fn sighup_then_resume_ends_as_the_uninterrupted_run_event_core() {
+    signalled_and_resumed(libc::SIGHUP, "events", false);
+}
+
+#[test]
+fn sigterm_then_resume_ends_as_the_uninterrupted_run_event_core() {
+    signalled_and_resumed(libc::SIGTERM, "events", false);
+}
+
+#[test]
+fn sigint_then_resume_ends_as_the_uninterrupted_run_stepped_core() {
+    signalled_and_resumed(libc::SIGINT, "stepped", false);
+}
+
+#[test]
+fn sighup_then_resume_ends_as_the_uninterrupted_run_stepped_core() {
+    signalled_and_resumed(libc::SIGHUP, "stepped", true);
+}
+
+#[test]
+fn outside_sigkill_then_resume_ends_as_the_uninterrupted_run_stepped_core() {
+    signalled_and_resumed(libc::SIGKILL, "stepped", false);
 }
