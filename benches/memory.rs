@@ -1,47 +1,43 @@
 //! Peak memory per body (issue 19): the merging peer clouds of `benches/peers/` at
 //! N = 1e4, 1e5 and 1e6, built and run to T in this process, no recording.
 //!
-//! The figure is the process's peak resident memory (VmHWM) over one run, less what it
-//! held before the run, divided by N: bytes per body, reported through a criterion
-//! measurement of its own, so that `cargo bench --bench memory` keeps a baseline and
-//! shows a regression as it does for times. Linux only (`/proc/self/status`; the peak is
-//! reset by writing 5 to `/proc/self/clear_refs`).
+//! The figure is the peak resident memory of a whole `agglo run` of the scene (one
+//! thread, no recording; the child's ru_maxrss), divided by N: bytes per body, reported
+//! through a criterion measurement of its own, so that `cargo bench --bench memory` keeps
+//! a baseline and shows a regression as it does for times. (Measured in this process
+//! instead, memory freed by one run and kept by the allocator hid the next run's peak.)
+//! Linux only.
 //!
 //! Run: `cargo bench --bench memory`. The figures are in the README's speed section.
 
-use std::hint::black_box;
 use std::path::Path;
+use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use agglo::prelude::*;
 use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
-/// A `/proc/self/status` field in bytes.
-fn status_bytes(field: &str) -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").expect("Linux /proc");
-    let line = status
-        .lines()
-        .find(|l| l.starts_with(field))
-        .unwrap_or_else(|| panic!("{field} in /proc/self/status"));
-    let kib: f64 = line
-        .split_whitespace()
-        .nth(1)
-        .and_then(|v| v.parse().ok())
-        .expect("a number of kB");
-    kib * 1024.0
-}
-
-/// Peak resident bytes of one run of `scenario` above what the process held before.
-fn peak_bytes_of_run(scenario: &Scenario) -> f64 {
-    std::fs::write("/proc/self/clear_refs", "5").expect("peak reset (Linux ≥ 4.0)");
-    let before = status_bytes("VmRSS:");
-    let mut sim = Simulation::new(scenario).expect("scene builds");
-    sim.run().expect("run finishes");
-    black_box(sim.counters());
-    let peak = status_bytes("VmHWM:");
-    drop(sim);
-    peak - before
+/// Peak resident bytes of a whole `agglo run` of the scene at `path` (one thread, no
+/// recording): the kernel's own figure for the finished child (ru_maxrss), so that
+/// memory the bench process freed and kept cannot hide a run's peak.
+fn peak_bytes_of_run(path: &Path) -> f64 {
+    let child = Command::new(env!("CARGO_BIN_EXE_agglo"))
+        .args(["run", path.to_str().expect("UTF-8 path"), "--quiet"])
+        .env("RAYON_NUM_THREADS", "1")
+        .stdout(Stdio::null())
+        .spawn()
+        .expect("agglo starts");
+    let mut status = 0;
+    // SAFETY: an all-zero rusage is valid; wait4 fills it for our own child.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: waiting once for our own child, not yet waited for.
+    let pid = unsafe { libc::wait4(child.id() as libc::pid_t, &mut status, 0, &mut usage) };
+    assert_eq!(pid, child.id() as libc::pid_t, "wait4 on the run");
+    assert!(
+        libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0,
+        "agglo run failed"
+    );
+    usage.ru_maxrss as f64 * 1024.0 // KiB on Linux
 }
 
 /// Bytes per body, as a criterion measurement (the benches below report the value
@@ -85,7 +81,7 @@ impl ValueFormatter for BytesFormatter {
 
 fn memory(c: &mut Criterion<BytesPerBody>) {
     let mut group = c.benchmark_group("peak memory, merging cloud");
-    // Each sample is one whole run (about 30 s at 1e6); the spread is small (the same
+    // Each sample is one whole run (about 25 s at 1e6); the spread is small (the same
     // run each time), so the minimum of 10 samples is enough.
     group
         .sample_size(10)
@@ -94,12 +90,11 @@ fn memory(c: &mut Criterion<BytesPerBody>) {
     for n in [10_000usize, 100_000, 1_000_000] {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join(format!("benches/peers/scenes/peer_merge_{n}.json"));
-        let scenario = Scenario::load(&path).expect("peer scene");
         group.bench_function(format!("N={n}"), |b| {
             b.iter_custom(|iters| {
                 // Every iteration is the same run: its peak, once per iteration, so
                 // that criterion's per-iteration value is that peak per body.
-                let per_body = peak_bytes_of_run(&scenario) / n as f64;
+                let per_body = peak_bytes_of_run(&path) / n as f64;
                 per_body * iters as f64
             })
         });
