@@ -20,6 +20,9 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 /// Peak resident bytes of a whole `agglo run` of the scene at `path` (one thread, no
 /// recording): the kernel's own figure for the finished child (ru_maxrss), so that
 /// memory the bench process freed and kept cannot hide a run's peak.
+// The child is reaped by wait4 below, which std's wait cannot replace: it also gives
+// the child's rusage.
+#[allow(clippy::zombie_processes)]
 fn peak_bytes_of_run(path: &Path) -> f64 {
     let child = Command::new(env!("CARGO_BIN_EXE_agglo"))
         .args(["run", path.to_str().expect("UTF-8 path"), "--quiet"])
