@@ -353,8 +353,8 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         .clone()
         .or_else(|| scenario.output.mcap.clone().map(PathBuf::from));
 
-    // Before anything is allocated: does the scene fit in memory?
-    if let Some(warning) = agglo::memory::MemoryEstimate::of(&scenario)
+    // Before anything is allocated: does the scene fit in memory (recorded or not)?
+    if let Some(warning) = agglo::memory::MemoryEstimate::of_run(&scenario, mcap_path.is_some())
         .check()
         .map_err(anyhow::Error::msg)?
     {

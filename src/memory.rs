@@ -3,9 +3,11 @@
 //!
 //! The estimate is the measured peak resident memory per body of a run (release build,
 //! no recording: 832 B per body at N = 1e4 and 748 B at N = 1e5 on the merging peer
-//! clouds, `benches/peers/scenes/`), rounded up to [`BYTES_PER_BODY`] for the field's
-//! relaxation time and the sampled tables, plus [`BASE_BYTES`] for the process itself and
-//! the recording's buffers. It is compared with the memory the kernel says is available
+//! clouds, `benches/peers/scenes/`; 765 B at 1e6, `cargo bench --bench memory`), rounded
+//! up to [`BYTES_PER_BODY`] for the field's relaxation time and the sampled tables, plus
+//! [`BASE_BYTES`] for the process itself and the recording's buffers, plus
+//! [`RECORDING_BYTES_PER_BODY`] when the run records (a frame's scene is built, encoded
+//! and compressed on the writer thread from a copy of the bodies). It is compared with the memory the kernel says is available
 //! (`MemAvailable` in /proc/meminfo) before anything is allocated: `agglo run` refuses a
 //! scene that cannot fit and warns when it would take more than half; `agglo validate`
 //! prints the estimate and runs the same check.
@@ -14,6 +16,10 @@ use crate::scenario::Scenario;
 
 /// Peak resident bytes per body of a run (measured; see the module docs) [B].
 pub const BYTES_PER_BODY: f64 = 900.0;
+
+/// Peak resident bytes per body that recording adds [B]: a recorded 1e6-body peer
+/// bounce run peaked at 1366 MiB (1.43 kB per body) against 659 MB unrecorded.
+pub const RECORDING_BYTES_PER_BODY: f64 = 800.0;
 
 /// Resident bytes of the process without bodies (5.7 MB measured for two bodies) plus
 /// the recording's chunk buffers (1 MiB uncompressed, compressed copy) [B].
@@ -31,14 +37,30 @@ pub struct MemoryEstimate {
 }
 
 impl MemoryEstimate {
-    /// The estimate for `scenario` on this machine.
+    /// The estimate for `scenario` on this machine, without a recording.
     pub fn of(scenario: &Scenario) -> Self {
+        Self::of_run(scenario, false)
+    }
+
+    /// The estimate for `scenario` on this machine, recorded to MCAP or not.
+    pub fn of_run(scenario: &Scenario, recording: bool) -> Self {
         let bodies = scenario.cloud.count.max(scenario.cloud.bodies.len());
+        let per_body = BYTES_PER_BODY
+            + if recording {
+                RECORDING_BYTES_PER_BODY
+            } else {
+                0.0
+            };
         Self {
             bodies,
-            bytes: BASE_BYTES + BYTES_PER_BODY * bodies as f64,
+            bytes: BASE_BYTES + per_body * bodies as f64,
             available: available_bytes(),
         }
+    }
+
+    /// Bytes per body of the estimate [B].
+    fn per_body(&self) -> f64 {
+        (self.bytes - BASE_BYTES) / self.bodies.max(1) as f64
     }
 
     /// One line for `agglo validate`.
@@ -48,14 +70,14 @@ impl MemoryEstimate {
                 "memory: about {:.0} MB for {} bodies ({:.0} B per body), {:.0} MB available",
                 self.bytes / 1e6,
                 self.bodies,
-                BYTES_PER_BODY,
+                self.per_body(),
                 a / 1e6
             ),
             None => format!(
                 "memory: about {:.0} MB for {} bodies ({:.0} B per body); available memory unknown",
                 self.bytes / 1e6,
                 self.bodies,
-                BYTES_PER_BODY
+                self.per_body()
             ),
         }
     }
@@ -72,9 +94,11 @@ impl MemoryEstimate {
                  of memory is available; allowed N ≤ {:.3e} on this machine now",
                 self.bodies,
                 self.bytes / 1e9,
-                BYTES_PER_BODY,
+                self.per_body(),
                 available / 1e9,
-                ((available - BASE_BYTES) / BYTES_PER_BODY).max(0.0).floor()
+                ((available - BASE_BYTES) / self.per_body())
+                    .max(0.0)
+                    .floor()
             ));
         }
         Ok((self.bytes > 0.5 * available).then(|| {
@@ -117,6 +141,31 @@ mod tests {
         assert!(e.starts_with("cloud.count"), "{e}");
         // (1e9 − 16e6) / 900 bodies fit.
         assert!(e.contains("N ≤ 1.093e6"), "{e}");
+    }
+
+    #[test]
+    fn a_recorded_run_is_estimated_with_the_recording_s_bytes_per_body() {
+        let mut scenario = Scenario::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/quick_demo.json"),
+        )
+        .unwrap();
+        scenario.cloud.count = 1_000_000;
+        let (plain, recorded) = (
+            MemoryEstimate::of_run(&scenario, false),
+            MemoryEstimate::of_run(&scenario, true),
+        );
+        assert_eq!(plain.bytes, BASE_BYTES + 900.0 * 1e6);
+        assert_eq!(recorded.bytes, BASE_BYTES + 1700.0 * 1e6);
+        let limited = MemoryEstimate {
+            available: Some(1e9),
+            ..recorded
+        };
+        // (1e9 − 16e6) / 1700 bodies fit when recorded.
+        let e = limited.check().unwrap_err();
+        assert!(
+            e.contains("1700 B per body") && e.contains("N ≤ 5.788e5"),
+            "{e}"
+        );
     }
 
     #[test]
