@@ -6,7 +6,7 @@
 //! What stays the same as writing on the simulation thread:
 //! - **the bytes**: the sink takes the jobs in the order they were sent, one thread, so a
 //!   file is byte for byte what the inline sink writes ([`Threading::Inline`], kept for
-//!   the tests that compare both, and chosen by `AGGLO_WRITERS=inline`);
+//!   the tests that compare both, and chosen by `AGGLO_WRITERS=inline`, in any letter case);
 //! - **memory is bounded**: at most `bound` jobs wait in the channel (plus the one being
 //!   written), so a slow disk makes the simulation wait instead of queueing without end;
 //! - **errors are reported**: the first error of the sink ends the thread; the next
