@@ -71,6 +71,20 @@ pub struct ParticleBundle {
     pub local_time: LocalTime,
 }
 
+/// Every stored component of a body, read-only, with its reference time: what a copy of
+/// the bodies reads (`Simulation::bodies`, restart snapshots).
+pub type StoredBody = (
+    &'static ParticleId,
+    &'static Position,
+    &'static Velocity,
+    &'static Mass,
+    &'static Radius,
+    &'static Temperature,
+    &'static Hardness,
+    &'static Primaries,
+    &'static LocalTime,
+);
+
 /// A plain-data copy of one body's state, used for output and by pure functions.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BodyState {

@@ -34,7 +34,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::components::{
     Hardness, LocalTime, Mass, Particle, ParticleBundle, ParticleId, Position, Primaries, Radius,
-    Temperature, Velocity,
+    StoredBody, Temperature, Velocity,
 };
 use crate::resources::{
     Counters, EnergyLedger, ForceKicks, IdAllocator, InvariantReport, SimClock, StateChanged,
@@ -255,17 +255,7 @@ pub fn counters_from_list(list: &[u64]) -> Result<Counters, String> {
 /// Capture the world's state (bodies as they are: bring them to the current time first
 /// for a snapshot at a common time).
 pub fn capture(world: &mut World) -> RestartSnapshot {
-    let mut query = world.query_filtered::<(
-        &ParticleId,
-        &Position,
-        &Velocity,
-        &Mass,
-        &Radius,
-        &Temperature,
-        &Hardness,
-        &Primaries,
-        &LocalTime,
-    ), With<Particle>>();
+    let mut query = world.query_filtered::<StoredBody, With<Particle>>();
     let bodies = query
         .iter(world)
         .map(|(id, p, v, m, b, t, h, n, lt)| BodyRow {

@@ -22,8 +22,8 @@ use crate::bodies::{BodiesGate, Brought, Clockwork, LazyBody, bring_to, state_at
 use crate::cloud::PrimaryGrain;
 use crate::cloud::generate_cloud;
 use crate::components::{
-    BodyState, Hardness, LocalTime, Mass, Particle, ParticleId, Position, Primaries, Radius,
-    Temperature, Velocity,
+    BodyState, Hardness, LocalTime, Mass, Particle, Position, Radius, StoredBody, Temperature,
+    Velocity,
 };
 use crate::error::SimError;
 use crate::field::Field;
@@ -941,17 +941,10 @@ impl Simulation {
     /// Every body, sorted by stable id (from a shared reference, so observers of
     /// [`Simulation::run_with`] can read it).
     pub fn bodies(&self) -> Vec<BodyState> {
-        let Some(mut query) = self.world.try_query_filtered::<(
-            &ParticleId,
-            &Position,
-            &Velocity,
-            &Mass,
-            &Radius,
-            &Temperature,
-            &Hardness,
-            &Primaries,
-            &LocalTime,
-        ), With<Particle>>() else {
+        let Some(mut query) = self
+            .world
+            .try_query_filtered::<StoredBody, With<Particle>>()
+        else {
             return Vec::new(); // components never registered: no particles
         };
         // Event core: each body is brought to the current time as it is read.

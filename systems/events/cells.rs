@@ -93,6 +93,17 @@ impl Lists {
     fn bytes(&self) -> usize {
         4 * (self.head.capacity() + self.next.capacity() + self.prev.capacity())
     }
+
+    /// Append every body of a list from `first` on (but `skip`) to `out`, found `how`.
+    fn push_from(&self, first: u32, skip: u32, how: Partner, out: &mut Vec<(u32, Partner)>) {
+        let mut j = first;
+        while j != NONE {
+            if j != skip {
+                out.push((j, how));
+            }
+            j = self.next[j as usize];
+        }
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -557,13 +568,7 @@ impl CellGrid {
                     level: k as u8,
                     offset: [(i % 3) as i8 - 1, (i / 3 % 3) as i8 - 1, (i / 9) as i8 - 1],
                 };
-                let mut j = first;
-                while j != NONE {
-                    if j != slot {
-                        out.push((j, how));
-                    }
-                    j = lists.next[j as usize];
-                }
+                lists.push_from(first, slot, how, out);
             }
         }
         out.extend(
@@ -630,13 +635,7 @@ impl CellGrid {
                     level: k as u8,
                     offset,
                 };
-                let mut j = lists.head[cell];
-                while j != NONE {
-                    if j != slot {
-                        out.push((j, how));
-                    }
-                    j = lists.next[j as usize];
-                }
+                lists.push_from(lists.head[cell], slot, how, out);
             }
         }
     }

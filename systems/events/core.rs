@@ -146,12 +146,6 @@ pub struct Trajectory {
 }
 
 impl Trajectory {
-    /// Unwrapped position at time t [m] on a straight flight.
-    #[inline]
-    pub fn at(&self, t: f64) -> DVec3 {
-        self.position + self.velocity * (t - self.t_ref)
-    }
-
     fn path(&self) -> Path {
         Path {
             position: self.position,
