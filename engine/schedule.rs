@@ -32,6 +32,10 @@ use crate::scene::{Material, Physics, TimeControl, uses_event_core};
 use crate::setup::Scene;
 use crate::totals::totals;
 
+/// Entity indices kept below the bodies' for resources (the engine's and the plugins'
+/// together hold fewer than 100; more would still work, costing 4 bytes per body each).
+const RESOURCE_INDICES: usize = 256;
+
 /// The schedule that advances the world by one step.
 #[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct SimStep;
@@ -220,7 +224,20 @@ impl SimBuilder {
             cloud.iter().map(|b| (b.mass, b.velocity, b.temperature)),
             material.C,
         );
+        // Resources are entities in bevy_ecs 0.20, each stored in a sparse set indexed by
+        // entity index: one spawned after a million bodies costs 4 MB (its sparse array
+        // spans every index below it; 25 of them took 100 MB at N = 1e6). Low indices are
+        // held for them while the bodies are spawned, then freed, and the allocator hands
+        // freed indices out first, so every resource inserted later (here or by a
+        // plugin) gets one of them.
+        let held: Vec<_> = (0..RESOURCE_INDICES)
+            .map(|_| world.spawn_empty().id())
+            .collect();
         world.spawn_batch(cloud.iter().map(|b| b.bundle()));
+        drop(cloud);
+        for entity in held.into_iter().rev() {
+            world.despawn(entity);
+        }
         world.insert_resource(material);
         world.insert_resource(primary);
         world.insert_resource(*scene.domain());
@@ -810,6 +827,10 @@ impl Simulation {
             rotate(&mut self.world);
         }
         self.schedule.run(&mut self.world);
+        // bevy_ecs keeps a message per component of every despawned body until trackers
+        // are cleared (for `RemovedComponents` readers; the engine has none): left alone,
+        // a merging 1e6 cloud held 168 MB of them at its end.
+        self.world.clear_trackers();
         let checkpoint = self.checkpoint_if_due();
         self.wall_seconds += start.elapsed().as_secs_f64();
         checkpoint

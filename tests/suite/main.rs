@@ -36,4 +36,5 @@ mod stepping;
 mod study;
 mod unfinishable_runs;
 mod worked_examples;
+mod world_memory;
 mod writers;
