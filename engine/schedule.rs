@@ -983,7 +983,9 @@ impl Simulation {
                 }
             })
             .collect();
-        bodies.sort_by_key(|b| b.id);
+        // Ids are unique, so an unstable sort gives the same order, without the stable
+        // sort's buffer of half the bodies (48 MB at N = 1e6, at the run's peak).
+        bodies.sort_unstable_by_key(|b| b.id);
         bodies
     }
 

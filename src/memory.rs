@@ -2,9 +2,11 @@
 //! of bodies comes from here, not from a fixed cap.
 //!
 //! The estimate is the measured peak resident memory per body of a run (release build,
-//! no recording: 832 B per body at N = 1e4 and 748 B at N = 1e5 on the merging peer
-//! clouds, `benches/peers/scenes/`; 765 B at 1e6, `cargo bench --bench memory`), rounded
-//! up to [`BYTES_PER_BODY`] for the field's relaxation time and the sampled tables, plus
+//! no recording, `cargo bench --bench memory` on the merging peer clouds,
+//! `benches/peers/scenes/`: 580 B per body at N = 1e5 and 488 B at 1e6; 1234 B at 1e4,
+//! where the process's own 5.7 MB is most of it; the 1e6 bounce cloud peaks at about
+//! 505 B when its final state is read), rounded up to [`BYTES_PER_BODY`] for the field's
+//! relaxation time and the sampled tables, plus
 //! [`BASE_BYTES`] for the process itself and the recording's buffers, plus
 //! [`RECORDING_BYTES_PER_BODY`] when the run records (a frame's scene is built, encoded
 //! and compressed on the writer thread from a copy of the bodies). It is compared with the memory the kernel says is available
@@ -15,7 +17,7 @@
 use crate::scenario::Scenario;
 
 /// Peak resident bytes per body of a run (measured; see the module docs) [B].
-pub const BYTES_PER_BODY: f64 = 900.0;
+pub const BYTES_PER_BODY: f64 = 650.0;
 
 /// Peak resident bytes per body that recording adds [B]: a recorded 1e6-body peer
 /// bounce run peaked at 1366 MiB (1.43 kB per body) against 659 MB unrecorded.
@@ -135,12 +137,12 @@ mod tests {
     #[test]
     fn a_scene_that_fits_passes_and_one_that_does_not_names_the_field_and_the_limit() {
         assert_eq!(estimate(1000, 1e9).check(), Ok(None));
-        let half = estimate(1_000_000, 1.5e9).check().unwrap();
+        let half = estimate(1_000_000, 1.2e9).check().unwrap();
         assert!(half.unwrap().starts_with("warning"));
         let e = estimate(100_000_000, 1e9).check().unwrap_err();
         assert!(e.starts_with("cloud.count"), "{e}");
-        // (1e9 − 16e6) / 900 bodies fit.
-        assert!(e.contains("N ≤ 1.093e6"), "{e}");
+        // (1e9 − 16e6) / 650 bodies fit.
+        assert!(e.contains("N ≤ 1.514e6"), "{e}");
     }
 
     #[test]
@@ -154,16 +156,16 @@ mod tests {
             MemoryEstimate::of_run(&scenario, false),
             MemoryEstimate::of_run(&scenario, true),
         );
-        assert_eq!(plain.bytes, BASE_BYTES + 900.0 * 1e6);
-        assert_eq!(recorded.bytes, BASE_BYTES + 1700.0 * 1e6);
+        assert_eq!(plain.bytes, BASE_BYTES + 650.0 * 1e6);
+        assert_eq!(recorded.bytes, BASE_BYTES + 1450.0 * 1e6);
         let limited = MemoryEstimate {
             available: Some(1e9),
             ..recorded
         };
-        // (1e9 − 16e6) / 1700 bodies fit when recorded.
+        // (1e9 − 16e6) / 1450 bodies fit when recorded.
         let e = limited.check().unwrap_err();
         assert!(
-            e.contains("1700 B per body") && e.contains("N ≤ 5.788e5"),
+            e.contains("1450 B per body") && e.contains("N ≤ 6.786e5"),
             "{e}"
         );
     }
