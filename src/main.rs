@@ -1,6 +1,10 @@
 //! The `agglo` command: parse → run → exit code. Errors print with their causes.
 
 mod cli;
+mod huge_pages;
+
+#[global_allocator]
+static ALLOCATOR: huge_pages::HugePages = huge_pages::HugePages;
 
 use std::process::ExitCode;
 
