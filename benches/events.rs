@@ -16,6 +16,11 @@ use std::time::Duration;
 use agglo::prelude::*;
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 
+/// The allocator of the `agglo` binary (large blocks on transparent huge pages), so that
+/// the bench times what a run does.
+#[global_allocator]
+static ALLOCATOR: agglo::huge_pages::HugePages = agglo::huge_pages::HugePages;
+
 fn peer(variant: &str, n: usize) -> Scenario {
     Scenario::load(
         &Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -32,8 +32,8 @@ use crate::scene::{Material, Physics, TimeControl, uses_event_core};
 use crate::setup::Scene;
 use crate::totals::totals;
 
-/// Entity indices kept below the bodies' for resources (the engine's and the plugins'
-/// together hold fewer than 100; more would still work, costing 4 bytes per body each).
+/// Entity indices kept below the bodies' for resources (a default scene holds 27, the
+/// engine's and the plugins'; more would still work, costing 4 bytes per body each).
 const RESOURCE_INDICES: usize = 256;
 
 /// The schedule that advances the world by one step.

@@ -1,5 +1,7 @@
-//! The process's allocator: the system's, with every large block asked to be backed by
-//! transparent huge pages (2 MiB instead of 4 KiB).
+//! An allocator for the process: the system's, with every large block asked to be
+//! backed by transparent huge pages (2 MiB instead of 4 KiB). The `agglo` binary and the
+//! event benches use it; a program of your own can too:
+//! `#[global_allocator] static A: agglo::huge_pages::HugePages = agglo::huge_pages::HugePages;`
 //!
 //! An event of a large cloud reads a few bytes from each of many arrays (paths, cells,
 //! calendar, the world's columns) at places no cache predicts; with 4 KiB pages most of

@@ -27,6 +27,7 @@
 pub mod charts;
 pub mod cloud_file;
 pub mod farm;
+pub mod huge_pages;
 pub mod inverse;
 pub mod live;
 pub mod memory;

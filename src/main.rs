@@ -1,10 +1,9 @@
 //! The `agglo` command: parse → run → exit code. Errors print with their causes.
 
 mod cli;
-mod huge_pages;
 
 #[global_allocator]
-static ALLOCATOR: huge_pages::HugePages = huge_pages::HugePages;
+static ALLOCATOR: agglo::huge_pages::HugePages = agglo::huge_pages::HugePages;
 
 use std::process::ExitCode;
 
