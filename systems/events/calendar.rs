@@ -6,6 +6,12 @@
 //! predictions; events made stale by a *partner's* change are detected when popped,
 //! through the partner's event counter. Ties in time are broken by the owner's stable
 //! id, so the order of events never depends on memory layout.
+//!
+//! The heap's entries are 16 bytes (time and slot); the owner's id, needed only to break
+//! a tie, is kept per slot beside the event's kind. A replaced top sifts down Floyd's
+//! way: the hole goes down the smaller children to a leaf (one comparison per level),
+//! then the entry climbs back (a few levels: a body's next event is usually late). Its
+//! place is the same as with the textbook sift, as keys (time, id) are all distinct.
 
 /// What a predicted event is.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,16 +36,7 @@ pub struct Event {
 #[derive(Debug, Clone, Copy)]
 struct Entry {
     time: f64,
-    /// Stable id of the owner: the tie-break.
-    id: u64,
     slot: u32,
-}
-
-impl Entry {
-    #[inline]
-    fn before(&self, other: &Entry) -> bool {
-        self.time < other.time || (self.time == other.time && self.id < other.id)
-    }
 }
 
 const ABSENT: u32 = u32::MAX;
@@ -50,9 +47,9 @@ pub struct Calendar {
     heap: Vec<Entry>,
     /// Position of each slot in `heap`, or ABSENT.
     position: Vec<u32>,
-    /// What the event of each slot is (valid while the slot is in the heap; its time
-    /// is in the heap entry).
-    kinds: Vec<EventKind>,
+    /// What the event of each slot is, and the stable id of its owner (the tie-break),
+    /// valid while the slot is in the heap; its time is in the heap entry.
+    kinds: Vec<(EventKind, u64)>,
 }
 
 impl Calendar {
@@ -69,14 +66,21 @@ impl Calendar {
     pub fn bytes(&self) -> usize {
         self.heap.capacity() * std::mem::size_of::<Entry>()
             + self.position.capacity() * 4
-            + self.kinds.capacity() * std::mem::size_of::<EventKind>()
+            + self.kinds.capacity() * std::mem::size_of::<(EventKind, u64)>()
+    }
+
+    /// True when `a` is due before `b`: earlier, or as early with a smaller owner id.
+    #[inline]
+    fn before(&self, a: &Entry, b: &Entry) -> bool {
+        a.time < b.time
+            || (a.time == b.time && self.kinds[a.slot as usize].1 < self.kinds[b.slot as usize].1)
     }
 
     fn ensure(&mut self, slot: u32) {
         let need = slot as usize + 1;
         if self.position.len() < need {
             self.position.resize(need, ABSENT);
-            self.kinds.resize(need, EventKind::Refresh);
+            self.kinds.resize(need, (EventKind::Refresh, 0));
         }
     }
 
@@ -87,10 +91,9 @@ impl Calendar {
         match event {
             None => self.remove(slot),
             Some(event) => {
-                self.kinds[slot as usize] = event.kind;
+                self.kinds[slot as usize] = (event.kind, id);
                 let entry = Entry {
                     time: event.time,
-                    id,
                     slot,
                 };
                 let at = self.position[slot as usize];
@@ -101,7 +104,7 @@ impl Calendar {
                     self.sift_up(last);
                 } else {
                     let at = at as usize;
-                    let earlier = entry.before(&self.heap[at]);
+                    let earlier = entry.time < self.heap[at].time;
                     self.heap[at] = entry;
                     if earlier {
                         self.sift_up(at);
@@ -137,7 +140,7 @@ impl Calendar {
         let &at = self.position.get(slot as usize)?;
         (at != ABSENT).then(|| Event {
             time: self.heap[at as usize].time,
-            kind: self.kinds[slot as usize],
+            kind: self.kinds[slot as usize].0,
         })
     }
 
@@ -151,11 +154,11 @@ impl Calendar {
         // (an earlier renumbering dropped them).
         let len = new_of_old.len();
         self.position.resize(len, ABSENT);
-        self.kinds.resize(len, EventKind::Refresh);
+        self.kinds.resize(len, (EventKind::Refresh, 0));
         for entry in &mut self.heap {
             entry.slot = new_of_old[entry.slot as usize];
         }
-        for kind in &mut self.kinds {
+        for (kind, _) in &mut self.kinds {
             if let EventKind::Contact { slot, counter } = *kind {
                 *kind = match partner(slot) {
                     Some(slot) => EventKind::Contact { slot, counter },
@@ -174,7 +177,7 @@ impl Calendar {
                 e.slot,
                 Event {
                     time: e.time,
-                    kind: self.kinds[e.slot as usize],
+                    kind: self.kinds[e.slot as usize].0,
                 },
             )
         })
@@ -187,41 +190,62 @@ impl Calendar {
         Some(top)
     }
 
-    fn sift_up(&mut self, mut at: usize) {
-        while at > 0 {
-            let parent = (at - 1) / 2;
-            if self.heap[at].before(&self.heap[parent]) {
-                self.swap(at, parent);
-                at = parent;
-            } else {
+    /// Move the entry at `at` up to its place.
+    fn sift_up(&mut self, at: usize) {
+        let entry = self.heap[at];
+        let mut hole = at;
+        while hole > 0 {
+            let parent = (hole - 1) / 2;
+            if !self.before(&entry, &self.heap[parent]) {
                 break;
             }
+            self.fill(hole, parent);
+            hole = parent;
         }
+        self.place(hole, entry);
     }
 
-    fn sift_down(&mut self, mut at: usize) {
+    /// Move the entry at `at` down to its place (Floyd's: see the module's text).
+    fn sift_down(&mut self, at: usize) {
         let n = self.heap.len();
+        let entry = self.heap[at];
+        let mut hole = at;
         loop {
-            let (l, r) = (2 * at + 1, 2 * at + 2);
-            let mut best = at;
-            if l < n && self.heap[l].before(&self.heap[best]) {
-                best = l;
-            }
-            if r < n && self.heap[r].before(&self.heap[best]) {
-                best = r;
-            }
-            if best == at {
+            let left = 2 * hole + 1;
+            if left >= n {
                 break;
             }
-            self.swap(at, best);
-            at = best;
+            let right = left + 1;
+            let child = if right < n && self.before(&self.heap[right], &self.heap[left]) {
+                right
+            } else {
+                left
+            };
+            self.fill(hole, child);
+            hole = child;
         }
+        while hole > at {
+            let parent = (hole - 1) / 2;
+            if !self.before(&entry, &self.heap[parent]) {
+                break;
+            }
+            self.fill(hole, parent);
+            hole = parent;
+        }
+        self.place(hole, entry);
     }
 
-    fn swap(&mut self, a: usize, b: usize) {
-        self.heap.swap(a, b);
-        self.position[self.heap[a].slot as usize] = a as u32;
-        self.position[self.heap[b].slot as usize] = b as u32;
+    /// Move the entry at `from` into the hole at `hole`.
+    #[inline]
+    fn fill(&mut self, hole: usize, from: usize) {
+        let moved = self.heap[from];
+        self.place(hole, moved);
+    }
+
+    #[inline]
+    fn place(&mut self, at: usize, entry: Entry) {
+        self.heap[at] = entry;
+        self.position[entry.slot as usize] = at as u32;
     }
 }
 
@@ -249,33 +273,52 @@ mod tests {
         })
     }
 
-    #[test]
-    fn pops_in_time_order_after_random_updates_and_removals() {
-        let mut rng = StdRng::seed_from_u64(3);
+    /// Random sets and removals, then every pop: in order of (time, owner id). With
+    /// `ties`, times come from 8 values, so most comparisons fall to the ids (owner ids
+    /// are a scramble of the slots, so slot order would not pass).
+    fn check_random_updates(seed: u64, ties: bool) {
+        let mut rng = StdRng::seed_from_u64(seed);
         let mut cal = Calendar::default();
         let mut truth = vec![None; 200];
+        let id_of = |slot: u32| (slot as u64 * 7919) % 211;
         for _ in 0..5000 {
             let slot = rng.random_range(0..200u32);
             if rng.random_bool(0.2) {
                 cal.remove(slot);
                 truth[slot as usize] = None;
             } else {
-                let t = rng.random_range(0.0..1.0);
-                cal.set(slot, slot as u64, at(t));
+                let t = if ties {
+                    rng.random_range(0..8u32) as f64
+                } else {
+                    rng.random_range(0.0..1.0)
+                };
+                cal.set(slot, id_of(slot), at(t));
                 truth[slot as usize] = Some(t);
             }
         }
-        let mut expected: Vec<(f64, u32)> = truth
+        let mut expected: Vec<(f64, u64, u32)> = truth
             .iter()
             .enumerate()
-            .filter_map(|(s, t)| t.map(|t| (t, s as u32)))
+            .filter_map(|(s, t)| t.map(|t| (t, id_of(s as u32), s as u32)))
             .collect();
         expected.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let mut got = Vec::new();
         while let Some((slot, e)) = cal.pop() {
-            got.push((e.time, slot));
+            got.push((e.time, id_of(slot), slot));
         }
         assert_eq!(got, expected);
+    }
+
+    #[test]
+    fn pops_in_time_order_after_random_updates_and_removals() {
+        check_random_updates(3, false);
+    }
+
+    #[test]
+    fn equal_times_pop_by_owner_id_after_random_updates_and_removals() {
+        for seed in 0..4 {
+            check_random_updates(seed, true);
+        }
     }
 
     #[test]
