@@ -7,8 +7,8 @@
 //! through the partner's event counter. Ties in time are broken by the owner's stable
 //! id, so the order of events never depends on memory layout.
 //!
-//! The heap's entries are 16 bytes (time and slot); the owner's id, needed only to break
-//! a tie, is kept per slot beside the event's kind. A replaced top sifts down Floyd's
+//! The heap's entries are 16 bytes (time and slot); the owners' ids, needed only to
+//! break a tie, are the core's (every call that reorders the heap is handed them). A replaced top sifts down Floyd's
 //! way: the hole goes down the smaller children to a leaf (one comparison per level),
 //! then the entry climbs back (a few levels: a body's next event is usually late). Its
 //! place is the same as with the textbook sift, as keys (time, id) are all distinct.
@@ -47,9 +47,9 @@ pub struct Calendar {
     heap: Vec<Entry>,
     /// Position of each slot in `heap`, or ABSENT.
     position: Vec<u32>,
-    /// What the event of each slot is, and the stable id of its owner (the tie-break),
-    /// valid while the slot is in the heap; its time is in the heap entry.
-    kinds: Vec<(EventKind, u64)>,
+    /// What the event of each slot is (valid while the slot is in the heap; its time
+    /// is in the heap entry).
+    kinds: Vec<EventKind>,
 }
 
 impl Calendar {
@@ -66,32 +66,32 @@ impl Calendar {
     pub fn bytes(&self) -> usize {
         self.heap.capacity() * std::mem::size_of::<Entry>()
             + self.position.capacity() * 4
-            + self.kinds.capacity() * std::mem::size_of::<(EventKind, u64)>()
+            + self.kinds.capacity() * std::mem::size_of::<EventKind>()
     }
 
-    /// True when `a` is due before `b`: earlier, or as early with a smaller owner id.
+    /// True when `a` is due before `b`: earlier, or as early with a smaller owner id
+    /// (`ids`: the stable id of each slot's body).
     #[inline]
-    fn before(&self, a: &Entry, b: &Entry) -> bool {
-        a.time < b.time
-            || (a.time == b.time && self.kinds[a.slot as usize].1 < self.kinds[b.slot as usize].1)
+    fn before(a: &Entry, b: &Entry, ids: &[u64]) -> bool {
+        a.time < b.time || (a.time == b.time && ids[a.slot as usize] < ids[b.slot as usize])
     }
 
     fn ensure(&mut self, slot: u32) {
         let need = slot as usize + 1;
         if self.position.len() < need {
             self.position.resize(need, ABSENT);
-            self.kinds.resize(need, (EventKind::Refresh, 0));
+            self.kinds.resize(need, EventKind::Refresh);
         }
     }
 
-    /// Schedule `event` for `slot` (owner id `id`), replacing its previous event;
-    /// `None` removes the slot's event.
-    pub fn set(&mut self, slot: u32, id: u64, event: Option<Event>) {
+    /// Schedule `event` for `slot`, replacing its previous event; `None` removes the
+    /// slot's event. `ids`: the stable id of each slot's body (the tie-break).
+    pub fn set(&mut self, slot: u32, event: Option<Event>, ids: &[u64]) {
         self.ensure(slot);
         match event {
-            None => self.remove(slot),
+            None => self.remove(slot, ids),
             Some(event) => {
-                self.kinds[slot as usize] = (event.kind, id);
+                self.kinds[slot as usize] = event.kind;
                 let entry = Entry {
                     time: event.time,
                     slot,
@@ -101,15 +101,15 @@ impl Calendar {
                     self.heap.push(entry);
                     let last = self.heap.len() - 1;
                     self.position[slot as usize] = last as u32;
-                    self.sift_up(last);
+                    self.sift_up(last, ids);
                 } else {
                     let at = at as usize;
                     let earlier = entry.time < self.heap[at].time;
                     self.heap[at] = entry;
                     if earlier {
-                        self.sift_up(at);
+                        self.sift_up(at, ids);
                     } else {
-                        self.sift_down(at);
+                        self.sift_down(at, ids);
                     }
                 }
             }
@@ -117,7 +117,7 @@ impl Calendar {
     }
 
     /// Remove the slot's event, if any.
-    pub fn remove(&mut self, slot: u32) {
+    pub fn remove(&mut self, slot: u32, ids: &[u64]) {
         let Some(&at) = self.position.get(slot as usize) else {
             return;
         };
@@ -130,8 +130,8 @@ impl Calendar {
         if at < self.heap.len() {
             self.heap[at] = last;
             self.position[last.slot as usize] = at as u32;
-            self.sift_down(at);
-            self.sift_up(at);
+            self.sift_down(at, ids);
+            self.sift_up(at, ids);
         }
     }
 
@@ -140,7 +140,7 @@ impl Calendar {
         let &at = self.position.get(slot as usize)?;
         (at != ABSENT).then(|| Event {
             time: self.heap[at as usize].time,
-            kind: self.kinds[slot as usize].0,
+            kind: self.kinds[slot as usize],
         })
     }
 
@@ -154,11 +154,11 @@ impl Calendar {
         // (an earlier renumbering dropped them).
         let len = new_of_old.len();
         self.position.resize(len, ABSENT);
-        self.kinds.resize(len, (EventKind::Refresh, 0));
+        self.kinds.resize(len, EventKind::Refresh);
         for entry in &mut self.heap {
             entry.slot = new_of_old[entry.slot as usize];
         }
-        for (kind, _) in &mut self.kinds {
+        for kind in &mut self.kinds {
             if let EventKind::Contact { slot, counter } = *kind {
                 *kind = match partner(slot) {
                     Some(slot) => EventKind::Contact { slot, counter },
@@ -177,26 +177,26 @@ impl Calendar {
                 e.slot,
                 Event {
                     time: e.time,
-                    kind: self.kinds[e.slot as usize].0,
+                    kind: self.kinds[e.slot as usize],
                 },
             )
         })
     }
 
     /// Remove and return the earliest event.
-    pub fn pop(&mut self) -> Option<(u32, Event)> {
+    pub fn pop(&mut self, ids: &[u64]) -> Option<(u32, Event)> {
         let top = self.peek()?;
-        self.remove(top.0);
+        self.remove(top.0, ids);
         Some(top)
     }
 
     /// Move the entry at `at` up to its place.
-    fn sift_up(&mut self, at: usize) {
+    fn sift_up(&mut self, at: usize, ids: &[u64]) {
         let entry = self.heap[at];
         let mut hole = at;
         while hole > 0 {
             let parent = (hole - 1) / 2;
-            if !self.before(&entry, &self.heap[parent]) {
+            if !Self::before(&entry, &self.heap[parent], ids) {
                 break;
             }
             self.fill(hole, parent);
@@ -206,7 +206,7 @@ impl Calendar {
     }
 
     /// Move the entry at `at` down to its place (Floyd's: see the module's text).
-    fn sift_down(&mut self, at: usize) {
+    fn sift_down(&mut self, at: usize, ids: &[u64]) {
         let n = self.heap.len();
         let entry = self.heap[at];
         let mut hole = at;
@@ -216,7 +216,7 @@ impl Calendar {
                 break;
             }
             let right = left + 1;
-            let child = if right < n && self.before(&self.heap[right], &self.heap[left]) {
+            let child = if right < n && Self::before(&self.heap[right], &self.heap[left], ids) {
                 right
             } else {
                 left
@@ -226,7 +226,7 @@ impl Calendar {
         }
         while hole > at {
             let parent = (hole - 1) / 2;
-            if !self.before(&entry, &self.heap[parent]) {
+            if !Self::before(&entry, &self.heap[parent], ids) {
                 break;
             }
             self.fill(hole, parent);
@@ -281,10 +281,11 @@ mod tests {
         let mut cal = Calendar::default();
         let mut truth = vec![None; 200];
         let id_of = |slot: u32| (slot as u64 * 7919) % 211;
+        let ids: Vec<u64> = (0..200).map(id_of).collect();
         for _ in 0..5000 {
             let slot = rng.random_range(0..200u32);
             if rng.random_bool(0.2) {
-                cal.remove(slot);
+                cal.remove(slot, &ids);
                 truth[slot as usize] = None;
             } else {
                 let t = if ties {
@@ -292,7 +293,7 @@ mod tests {
                 } else {
                     rng.random_range(0.0..1.0)
                 };
-                cal.set(slot, id_of(slot), at(t));
+                cal.set(slot, at(t), &ids);
                 truth[slot as usize] = Some(t);
             }
         }
@@ -303,7 +304,7 @@ mod tests {
             .collect();
         expected.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let mut got = Vec::new();
-        while let Some((slot, e)) = cal.pop() {
+        while let Some((slot, e)) = cal.pop(&ids) {
             got.push((e.time, id_of(slot), slot));
         }
         assert_eq!(got, expected);
@@ -324,10 +325,11 @@ mod tests {
     #[test]
     fn equal_times_pop_by_owner_id() {
         let mut cal = Calendar::default();
-        cal.set(0, 9, at(1.0));
-        cal.set(1, 4, at(1.0));
-        cal.set(2, 7, at(1.0));
-        let order: Vec<u32> = std::iter::from_fn(|| cal.pop().map(|x| x.0)).collect();
+        let ids = [9, 4, 7];
+        for slot in 0..3 {
+            cal.set(slot, at(1.0), &ids);
+        }
+        let order: Vec<u32> = std::iter::from_fn(|| cal.pop(&ids).map(|x| x.0)).collect();
         assert_eq!(order, vec![1, 2, 0]);
     }
 }

@@ -483,7 +483,7 @@ impl EventCore {
             return;
         };
         self.grid.remove(slot);
-        self.calendar.remove(slot);
+        self.calendar.remove(slot, &self.ids);
         self.alive[slot as usize] = false;
         // Any prediction naming this slot is now stale.
         self.counters[slot as usize] = self.counters[slot as usize].wrapping_add(1);
@@ -512,7 +512,7 @@ impl EventCore {
 
     /// Remove the earliest event.
     pub fn pop(&mut self) -> Option<(u32, Event)> {
-        self.calendar.pop()
+        self.calendar.pop(&self.ids)
     }
 
     /// True when a contact predicted with partner counter `counter` still holds.
@@ -539,8 +539,7 @@ impl EventCore {
             _ => Scan::Full,
         };
         let event = self.predict_by(slot, now, scan);
-        let id = self.ids[slot as usize];
-        self.calendar.set(slot, id, event);
+        self.calendar.set(slot, event, &self.ids);
     }
 
     /// The slot's earliest contact found at its last prediction, when that is still
@@ -567,8 +566,7 @@ impl EventCore {
     /// Predict `slot`'s next event from time `now` and file it in the calendar.
     pub fn schedule(&mut self, slot: u32, now: f64) {
         let event = self.predict(slot, now);
-        let id = self.ids[slot as usize];
-        self.calendar.set(slot, id, event);
+        self.calendar.set(slot, event, &self.ids);
     }
 
     /// The earliest event of `slot` at or after `now`: a contact with a possible partner
