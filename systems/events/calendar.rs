@@ -183,6 +183,25 @@ impl Calendar {
         })
     }
 
+    /// The slot whose event is likely next after the top's: the earlier of the top's
+    /// two children (unless the top's own next event comes sooner). A hint for
+    /// prefetching; its kind is asked for here.
+    pub fn runner_up(&self) -> Option<u32> {
+        let next = match (self.heap.get(1), self.heap.get(2)) {
+            (Some(l), Some(r)) => {
+                if r.time < l.time {
+                    r
+                } else {
+                    l
+                }
+            }
+            (Some(l), None) => l,
+            _ => return None,
+        };
+        super::cells::prefetch(&self.kinds[next.slot as usize]);
+        Some(next.slot)
+    }
+
     /// Remove and return the earliest event.
     pub fn pop(&mut self, ids: &[u64]) -> Option<(u32, Event)> {
         let top = self.peek()?;

@@ -647,6 +647,19 @@ impl CellGrid {
             prefetch(p);
         }
     }
+
+    /// Ask for what a crossing of `slot` reads first: its place and its links in the
+    /// finest level's lists (a hint: no effect on results).
+    pub fn prefetch_crossing(&self, slot: u32) {
+        self.prefetch_place(slot);
+        if let Some(level) = self.levels.first() {
+            let all = &level.all;
+            if let (Some(n), Some(p)) = (all.next.get(slot as usize), all.prev.get(slot as usize)) {
+                prefetch(n);
+                prefetch(p);
+            }
+        }
+    }
 }
 
 /// Ask the memory system to bring `r`'s cache line in (a hint: no effect on results).

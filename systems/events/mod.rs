@@ -197,6 +197,7 @@ pub fn pop_due_contacts(
         if event.time > due {
             break;
         }
+        core.prefetch_runner_up();
         // A crossing, refresh or stale prediction is replaced by the body's next event in
         // place (one sift instead of a pop and a push; the calendar's order is by
         // (time, id) alone, so the events come out the same).
@@ -355,6 +356,7 @@ fn settle(core: &mut EventCore, now: f64, limit: f64) {
         if event.time > limit {
             return;
         }
+        core.prefetch_runner_up();
         // Replaced in place, as in `pop_due_contacts`.
         match event.kind {
             EventKind::Crossing { axis, step } => {
