@@ -7,11 +7,12 @@
 //! through the partner's event counter. Ties in time are broken by the owner's stable
 //! id, so the order of events never depends on memory layout.
 //!
-//! The heap's entries are 16 bytes (time and slot); the owners' ids, needed only to
-//! break a tie, are the core's (every call that reorders the heap is handed them). A replaced top sifts down Floyd's
-//! way: the hole goes down the smaller children to a leaf (one comparison per level),
-//! then the entry climbs back (a few levels: a body's next event is usually late). Its
-//! place is the same as with the textbook sift, as keys (time, id) are all distinct.
+//! The heap's entries are 16 bytes (time and slot): the owners' ids, needed only to
+//! break a tie, are the core's, and every call that reorders the heap is handed them.
+//! An entry replaced by a later one sinks Floyd's way: the hole goes down the earlier
+//! children to a leaf (one comparison per level), then the entry climbs back (a few
+//! levels: a body's next event is usually late). Keys (time, id) are all distinct, so
+//! the order events come out in does not depend on how the heap is shaped.
 
 /// What a predicted event is.
 #[derive(Debug, Clone, Copy, PartialEq)]
