@@ -3,8 +3,8 @@
 //!
 //! The estimate is the measured peak resident memory per body of a run (release build,
 //! no recording, `cargo bench --bench memory` on the merging peer clouds,
-//! `benches/peers/scenes/`: 580 B per body at N = 1e5 and 488 B at 1e6; 1234 B at 1e4,
-//! where the process's own 5.7 MB is about half of it; the 1e6 bounce cloud peaks at 564 B
+//! `benches/peers/scenes/`: 568 B per body at N = 1e5 and 482 B at 1e6; 1231 B at 1e4,
+//! where the process's own 5.7 MB is about half of it; the 1e6 bounce cloud peaks at 552 B
 //! when its final state is read), rounded up to [`BYTES_PER_BODY`] for the field's
 //! relaxation time and the sampled tables, plus
 //! [`BASE_BYTES`] for the process itself and the recording's buffers, plus
