@@ -6,10 +6,10 @@
 //! `benches/peers/scenes/`: 568 B per body at N = 1e5 and 482 B at 1e6; 1231 B at 1e4,
 //! where the process's own 5.7 MB is about half of it; the 1e6 bounce cloud peaks at 552 B
 //! when its final state is read), rounded up to [`BYTES_PER_BODY`] for the field's
-//! relaxation time and the sampled tables, plus
-//! [`BASE_BYTES`] for the process itself and the recording's buffers, plus
-//! [`RECORDING_BYTES_PER_BODY`] when the run records (a frame's scene is built, encoded
-//! and compressed on the writer thread from a copy of the bodies). It is compared with the memory the kernel says is available
+//! relaxation time and the sampled tables, plus [`BASE_BYTES`] for the process itself
+//! and the recording's buffers, plus [`RECORDING_BYTES_PER_BODY`] when the run records
+//! (a frame's scene is built, encoded and compressed on the writer thread from a copy of
+//! the bodies). It is compared with the memory the kernel says is available
 //! (`MemAvailable` in /proc/meminfo) before anything is allocated: `agglo run` refuses a
 //! scene that cannot fit and warns when it would take more than half; `agglo validate`
 //! prints the estimate and runs the same check.
@@ -20,7 +20,8 @@ use crate::scenario::Scenario;
 pub const BYTES_PER_BODY: f64 = 650.0;
 
 /// Peak resident bytes per body that recording adds [B]: a recorded 1e6-body peer
-/// bounce run peaked at 1366 MiB (1.43 kB per body) against 659 MB unrecorded.
+/// bounce run peaked at 1302 MiB against 564 MB unrecorded, +802 B per body (it was
+/// 1366 MiB against 659 MB before the world's memory fixes).
 pub const RECORDING_BYTES_PER_BODY: f64 = 800.0;
 
 /// Resident bytes of the process without bodies (5.7 MB measured for two bodies) plus

@@ -14,6 +14,8 @@
 //! levels: a body's next event is usually late). Keys (time, id) are all distinct, so
 //! the order events come out in does not depend on how the heap is shaped.
 
+use super::cells::prefetch;
+
 /// What a predicted event is.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum EventKind {
@@ -199,7 +201,7 @@ impl Calendar {
             (Some(l), None) => l,
             _ => return None,
         };
-        super::cells::prefetch(&self.kinds[next.slot as usize]);
+        prefetch(&self.kinds[next.slot as usize]);
         Some(next.slot)
     }
 
@@ -213,8 +215,13 @@ impl Calendar {
     /// Move the entry at `at` up to its place.
     fn sift_up(&mut self, at: usize, ids: &[u64]) {
         let entry = self.heap[at];
-        let mut hole = at;
-        while hole > 0 {
+        self.climb(entry, at, 0, ids);
+    }
+
+    /// Place `entry` from the hole at `hole` upwards, no higher than `floor`: parents due
+    /// after it move down into the hole.
+    fn climb(&mut self, entry: Entry, mut hole: usize, floor: usize, ids: &[u64]) {
+        while hole > floor {
             let parent = (hole - 1) / 2;
             if !Self::before(&entry, &self.heap[parent], ids) {
                 break;
@@ -244,15 +251,7 @@ impl Calendar {
             self.fill(hole, child);
             hole = child;
         }
-        while hole > at {
-            let parent = (hole - 1) / 2;
-            if !Self::before(&entry, &self.heap[parent], ids) {
-                break;
-            }
-            self.fill(hole, parent);
-            hole = parent;
-        }
-        self.place(hole, entry);
+        self.climb(entry, hole, at, ids);
     }
 
     /// Move the entry at `from` into the hole at `hole`.
