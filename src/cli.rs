@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 mod clamp_watch;
 mod inverse;
+mod kernel;
 mod live;
 mod progress;
 mod ranks;
@@ -69,6 +70,11 @@ pub enum Command {
     Optimize(inverse::OptimizeArgs),
     /// Scan one scenario field of an inverse problem's base scenario (ensemble cost per point).
     Scan(inverse::ScanArgs),
+    /// Measure collision kernels and outcome probabilities on a coagulation code's mass
+    /// grid (DustPy, OpenFOAM population balance, explicit edges) over an ensemble of
+    /// seeds; write them as .npz (and a long Parquet table). Arrays and units:
+    /// docs/outputs.md, "agglo kernel".
+    Kernel(Box<kernel::KernelArgs>),
 }
 
 #[derive(Subcommand, Debug)]
@@ -202,6 +208,7 @@ fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow:
         Command::Layout { file, out } => layout(&file, out),
         Command::Optimize(args) => inverse::optimize(args, cluster),
         Command::Scan(args) => inverse::scan(args, cluster),
+        Command::Kernel(args) => kernel::kernel(*args),
     }
 }
 

@@ -29,6 +29,7 @@ pub mod cloud_file;
 pub mod farm;
 pub mod huge_pages;
 pub mod inverse;
+pub mod kernel;
 pub mod live;
 pub mod memory;
 pub mod output;
