@@ -56,6 +56,10 @@ pub enum GridError {
         needed: usize,
         got: usize,
     },
+    #[error(
+        "--bins: {classes} classes: allowed at most {MAX_CLASSES} (the file holds Nm³ fragment mass fractions)"
+    )]
+    TooMany { classes: usize },
     #[error("--bins dustpy: {field}: allowed {allowed} (got {got})")]
     DustPy {
         field: &'static str,
@@ -86,6 +90,10 @@ pub enum GridError {
     },
 }
 
+/// The most classes a grid may have: the file's fragment mass fractions are Nm³ floats
+/// (216 MB at 300 classes; DustPy's default grid has 120).
+pub const MAX_CLASSES: usize = 300;
+
 /// Where a grid came from (kept in the file's provenance).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum GridKind {
@@ -107,8 +115,8 @@ pub struct MassGrid {
     pub centres: Vec<f64>,
 }
 
-/// Parse the values after `kind:`, each finite and > 0, strictly increasing when `sorted`.
-fn numbers(kind: &'static str, text: &str, sorted: bool) -> Result<Vec<f64>, GridError> {
+/// Parse the values after `kind:`, each finite and > 0, strictly increasing.
+fn numbers(kind: &'static str, text: &str) -> Result<Vec<f64>, GridError> {
     let mut values: Vec<f64> = Vec::new();
     for (index, part) in text.split(',').map(str::trim).enumerate() {
         let value: f64 = part.parse().map_err(|_| GridError::NotANumber {
@@ -119,8 +127,7 @@ fn numbers(kind: &'static str, text: &str, sorted: bool) -> Result<Vec<f64>, Gri
         if !(value.is_finite() && value > 0.0) {
             return Err(GridError::NotPositive { kind, index, value });
         }
-        if sorted
-            && let Some(&prev) = values.last()
+        if let Some(&prev) = values.last()
             && value <= prev
         {
             return Err(GridError::Unsorted {
@@ -150,16 +157,37 @@ fn edges_around(points: &[f64]) -> Vec<f64> {
 impl MassGrid {
     /// Parse `--bins`; `density` [kg/m³] turns OpenFOAM diameters into masses.
     pub fn parse(spec: &str, density: f64) -> Result<Self, GridError> {
+        let grid = Self::parse_any(spec, density)?;
+        if grid.classes() > MAX_CLASSES {
+            return Err(GridError::TooMany {
+                classes: grid.classes(),
+            });
+        }
+        Ok(grid)
+    }
+
+    fn parse_any(spec: &str, density: f64) -> Result<Self, GridError> {
         let (kind, rest) = spec
             .split_once(':')
             .ok_or_else(|| GridError::Kind(spec.to_string()))?;
         match kind.trim() {
             "edges" => {
-                let edges = numbers("edges", rest, true)?;
+                let edges = numbers("edges", rest)?;
                 Self::from_edges(edges, spec)
             }
             "dustpy" => {
-                let values = numbers("dustpy", rest, false)?;
+                let values = rest
+                    .split(',')
+                    .map(str::trim)
+                    .enumerate()
+                    .map(|(index, text)| {
+                        text.parse::<f64>().map_err(|_| GridError::NotANumber {
+                            kind: "dustpy",
+                            index,
+                            text: text.to_string(),
+                        })
+                    })
+                    .collect::<Result<Vec<f64>, _>>()?;
                 let [mmin, mmax, per_decade] = values[..] else {
                     return Err(GridError::DustPy {
                         field: "values",
@@ -167,17 +195,24 @@ impl MassGrid {
                         got: values.len().to_string(),
                     });
                 };
-                if mmax <= mmin {
+                if !(mmin.is_finite() && mmin > 0.0) {
+                    return Err(GridError::DustPy {
+                        field: "mmin",
+                        allowed: "a finite mass > 0 [g]",
+                        got: mmin.to_string(),
+                    });
+                }
+                if !(mmax.is_finite() && mmax > mmin) {
                     return Err(GridError::DustPy {
                         field: "mmax",
                         allowed: "> mmin",
                         got: format!("{mmax:e} ≤ {mmin:e} g"),
                     });
                 }
-                if per_decade.fract() != 0.0 || per_decade < 1.0 {
+                if !(per_decade.fract() == 0.0 && (1.0..=1e4).contains(&per_decade)) {
                     return Err(GridError::DustPy {
                         field: "bins_per_decade",
-                        allowed: "an integer ≥ 1",
+                        allowed: "an integer from 1 to 10000",
                         got: per_decade.to_string(),
                     });
                 }
@@ -192,7 +227,7 @@ impl MassGrid {
                 })
             }
             "openfoam" => {
-                let diameters = numbers("openfoam", rest, true)?;
+                let diameters = numbers("openfoam", rest)?;
                 if diameters.len() < 2 {
                     return Err(GridError::TooFew {
                         kind: "openfoam",
@@ -217,6 +252,11 @@ impl MassGrid {
 
     /// A grid of explicit edges [kg].
     pub fn from_edges(edges: Vec<f64>, spec: &str) -> Result<Self, GridError> {
+        if edges.len() > MAX_CLASSES + 1 {
+            return Err(GridError::TooMany {
+                classes: edges.len() - 1,
+            });
+        }
         if edges.len() < 2 {
             return Err(GridError::TooFew {
                 kind: "edges",

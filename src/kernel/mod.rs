@@ -35,7 +35,7 @@ pub use accumulator::{
 pub use estimate::{
     Array, ArraySpec, CONVENTION, Data, Dim, Estimate, KERNEL_ARRAYS, ZERO_COUNT_UPPER_95, wilson,
 };
-pub use grid::{GridError, GridKind, MassGrid, dustpy_mass_grid};
+pub use grid::{GridError, GridKind, MAX_CLASSES, MassGrid, dustpy_mass_grid};
 
 use std::ops::ControlFlow;
 

@@ -19,6 +19,7 @@ mod fields;
 mod hooks;
 mod initial_data;
 mod inverse;
+mod kernel;
 mod layout;
 mod live;
 mod outcome;
