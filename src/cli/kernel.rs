@@ -52,7 +52,7 @@ pub struct KernelArgs {
     /// Write the arrays here (NumPy .npz).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
-    /// Also write them as a long table here (Parquet; CSV unless FILE ends in .parquet).
+    /// Also write them as a long table here (Parquet; FILE must end in .parquet).
     #[arg(long, value_name = "FILE")]
     pub parquet: Option<PathBuf>,
     /// Times per run at which the relative speed of all pairs is sampled, ≥ 1.
@@ -93,6 +93,15 @@ pub fn kernel(args: KernelArgs) -> anyhow::Result<()> {
     let mut scenario = super::load(&args.scenario)?;
     if !args.set.is_empty() {
         scenario = scenario.with_settings(&args.set)?;
+    }
+    if let Some(path) = &args.parquet
+        && !agglo::output::table::is_parquet(path)
+    {
+        // The long table holds the scenario's JSON, which a CSV cell cannot.
+        anyhow::bail!(
+            "--parquet {}: the name must end in .parquet",
+            path.display()
+        );
     }
     let grid = MassGrid::parse(&args.bins, scenario.material.rho)?;
     let window = window(&args)?;

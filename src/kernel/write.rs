@@ -1,7 +1,7 @@
 //! The kernel file: `.npz` (NumPy: one `.npy` per named array, stored uncompressed in a
 //! zip as `numpy.savez` does; `numpy.load(path)` opens it without pickles) and the same
-//! arrays as a long table (`--parquet`, or CSV when the name does not end in
-//! `.parquet`), one row per array element that has a value.
+//! arrays as a long Parquet table (`--parquet`), one row per array element that has a
+//! value. (Not CSV: the text arrays — the scenario's JSON — hold commas and newlines.)
 //!
 //! The `.npy` header is NumPy's format 1.0: magic, version, a little-endian u16 header
 //! length and a Python dict literal padded with spaces so the data starts on a 64-byte
@@ -120,14 +120,19 @@ pub const LONG_COLUMNS: &[Column] = &[
         "-",
         "third class index (fragment_mass_fraction: the product class); -1 if none",
     ),
-    float("value", "unit", "the value (NaN for text)"),
+    float("value", "see unit", "the value (NaN for text)"),
     text("text", "the value of a text array, empty otherwise"),
     text("unit", "unit of value"),
 ];
 
-/// Write `arrays` as a long table at `path` (Parquet when it ends in `.parquet`): one
+/// Write `arrays` as a long Parquet table at `path` (ending in `.parquet`): one
 /// row per element with a value (NaN elements, where there is no data, are left out).
 pub fn write_long(path: &Path, arrays: &[Array]) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        crate::output::table::is_parquet(path),
+        "{}: the long kernel table is Parquet only (the name must end in .parquet)",
+        path.display()
+    );
     let mut table = TableWriter::create(path, "kernel", LONG_COLUMNS)?;
     for a in arrays {
         let outcome_axis =

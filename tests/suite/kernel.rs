@@ -352,3 +352,51 @@ fn bad_grids_are_refused_naming_the_problem() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("--window: allowed 0 ≤ T0 < T1"), "{stderr}");
 }
+
+/// The long table holds the .npz arrays element by element (NaN left out), in the
+/// file's units, and the scenario as text.
+#[test]
+fn long_table_holds_the_arrays() {
+    let s = shipped("ballistic_aggregation.json")
+        .with_settings(&["cloud.count=300".into(), "time.end=2e-3".into()])
+        .unwrap();
+    let grid = MassGrid::parse("dustpy:1e-4,10,5", s.material.rho).unwrap();
+    let acc = kernel::measure_one(&s, &grid, Window::default(), Sampling::default(), 1).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let (npz, long) = (dir.path().join("k.npz"), dir.path().join("k.parquet"));
+    kernel::write_files(&acc, &s, true, &npz, Some(&long)).unwrap();
+    let table = read_table(&long).unwrap();
+    let names = table.texts("array").unwrap();
+    let (i, j) = (table.ints("i").unwrap(), table.ints("j").unwrap());
+    let (value, unit) = (table.floats("value").unwrap(), table.texts("unit").unwrap());
+    let e = Estimate::of(&acc);
+    let nm = grid.classes();
+    let kernel_si = e.floats("kernel");
+    let rows: Vec<usize> = (0..names.len()).filter(|&r| names[r] == "kernel").collect();
+    assert_eq!(rows.len(), kernel_si.iter().filter(|k| !k.is_nan()).count());
+    assert!(!rows.is_empty());
+    for r in rows {
+        let k = kernel_si[i[r] as usize * nm + j[r] as usize];
+        assert_eq!(unit[r], "cm^3/s");
+        assert!((value[r] / (k * 1e6) - 1.0).abs() < 1e-15 || value[r] == k * 1e6);
+    }
+    let texts = table.texts("text").unwrap();
+    let scenario = (0..names.len()).find(|&r| names[r] == "scenario").unwrap();
+    assert_eq!(Scenario::from_json(&texts[scenario]).unwrap(), s);
+    // A CSV long table could not hold that text: refused.
+    let err = kernel::write_files(&acc, &s, true, &npz, Some(&dir.path().join("k.csv")))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("Parquet only"), "{err}");
+    // The npz is a zip whose every member is a .npy: magic and version 1.0.
+    let bytes = std::fs::read(&npz).unwrap();
+    assert_eq!(&bytes[..4], b"PK\x03\x04");
+    let npy = kernel::write::npy_bytes(&e.arrays(true, "", "")[0]);
+    assert_eq!(&npy[..8], b"\x93NUMPY\x01\x00");
+    let header_len = u16::from_le_bytes([npy[8], npy[9]]) as usize;
+    assert_eq!(
+        (10 + header_len) % 64,
+        0,
+        "data starts on a 64-byte boundary"
+    );
+}
