@@ -578,7 +578,7 @@ impl Live {
         let mut draw = |n: usize| {
             state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
             // Multiply-shift: uniform enough for n ≪ 2^32.
-            ((splitmix64(state) >> 32) * n as u64 >> 32) as usize
+            (((splitmix64(state) >> 32) * n as u64) >> 32) as usize
         };
         let nonempty: Vec<usize> = (0..classes).filter(|&k| !members[k].is_empty()).collect();
         for (x, &i) in nonempty.iter().enumerate() {
