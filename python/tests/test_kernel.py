@@ -27,7 +27,7 @@ SETTINGS = ["--set", "cloud.count=500", "--set", "time.end=2e-3"]
 DUSTPY = (1e-4, 1e-1, 7)  # mmin [g], mmax [g], bins per decade
 
 
-def agglo_bin() -> Path:
+def binary() -> Path:
     path = Path(os.environ.get("AGGLO_BIN", ROOT / "target/debug/agglo"))
     if not path.exists():
         pytest.skip(f"no agglo binary at {path}: cargo build, or set AGGLO_BIN")
@@ -42,7 +42,7 @@ def files(tmp_path_factory):
     for units in ("cgs", "si"):
         path = out / f"k_{units}.npz"
         subprocess.run(
-            [str(agglo_bin()), "kernel", str(SCENE), "--bins", grid, "--seeds", "2",
+            [str(binary()), "kernel", str(SCENE), "--bins", grid, "--seeds", "2",
              "--threads", "1", "--units", units, "--out", str(path), "-q", *SETTINGS],
             check=True,
         )

@@ -193,6 +193,13 @@ fn counts_are_the_collision_logs() {
         ControlFlow::Continue(())
     })
     .unwrap();
+    // The class counts, followed from the merge and fragment messages alone, are the
+    // bodies' at the end.
+    let mut binned = vec![0u64; grid.classes()];
+    for b in sim.bodies() {
+        binned[grid.class_of(b.mass).unwrap()] += 1;
+    }
+    assert_eq!(acc.live_counts().unwrap(), &binned[..]);
     acc.end_run(&sim).unwrap();
     log.finish().unwrap();
     let table = read_table(&path).unwrap();
