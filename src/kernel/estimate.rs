@@ -498,6 +498,12 @@ impl Estimate {
 
     /// Every array of [`KERNEL_ARRAYS`], in SI or cgs, with the provenance strings.
     pub fn arrays(&self, cgs: bool, scenario_json: &str, grid_spec: &str) -> Vec<Array> {
+        self.clone().into_arrays(cgs, scenario_json, grid_spec)
+    }
+
+    /// [`Self::arrays`], moving the values instead of copying them (the fragment mass
+    /// fractions are Nm³ floats: 9.5 MB on 106 classes).
+    pub fn into_arrays(mut self, cgs: bool, scenario_json: &str, grid_spec: &str) -> Vec<Array> {
         let nm = self.classes;
         let shape_of = |shape: &str| -> Vec<usize> {
             shape
@@ -527,9 +533,19 @@ impl Estimate {
             .iter()
             .map(|a| {
                 let (unit, factor) = a.dim.unit(cgs);
-                let data = match (a.name, self.get(a.name)) {
-                    (_, Some(Data::F64(v))) => Data::F64(v.iter().map(|x| x * factor).collect()),
-                    (_, Some(d)) => d.clone(),
+                let taken = self
+                    .values
+                    .iter_mut()
+                    .find(|(n, _)| *n == a.name)
+                    .map(|(_, d)| std::mem::replace(d, Data::Text(Vec::new())));
+                let data = match (a.name, taken) {
+                    (_, Some(Data::F64(mut v))) => {
+                        if factor != 1.0 {
+                            v.iter_mut().for_each(|x| *x *= factor);
+                        }
+                        Data::F64(v)
+                    }
+                    (_, Some(d)) => d,
                     ("units", None) => text(if cgs { "cgs" } else { "si" }),
                     ("array_units", None) => text(&units_json),
                     ("convention", None) => text(CONVENTION),

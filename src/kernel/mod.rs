@@ -139,8 +139,7 @@ pub fn write_files(
     npz: &std::path::Path,
     long: Option<&std::path::Path>,
 ) -> anyhow::Result<()> {
-    let estimate = Estimate::of(acc);
-    let arrays = estimate.arrays(cgs, &scenario.to_json(), &acc.grid.spec);
+    let arrays = Estimate::of(acc).into_arrays(cgs, &scenario.to_json(), &acc.grid.spec);
     write::write_npz(npz, &arrays)?;
     if let Some(path) = long {
         write::write_long(path, &arrays)?;

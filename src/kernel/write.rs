@@ -18,6 +18,15 @@ use crate::output::table::{Cell, Column, TableWriter, float, int, text};
 
 /// One `.npy` file's bytes.
 pub fn npy_bytes(array: &Array) -> Vec<u8> {
+    let mut out = Vec::new();
+    // Writing to a Vec cannot fail.
+    let _ = write_npy(&mut out, array);
+    out
+}
+
+/// Write one `.npy` file to `out`: the header, then the data in chunks (no copy of the
+/// whole array).
+pub fn write_npy(out: &mut impl Write, array: &Array) -> std::io::Result<()> {
     let shape = match array.shape.len() {
         0 => "()".to_string(),
         1 => format!("({},)", array.shape[0]),
@@ -51,34 +60,36 @@ pub fn npy_bytes(array: &Array) -> Vec<u8> {
     let unpadded = 10 + header.len() + 1;
     header.push_str(&" ".repeat((64 - unpadded % 64) % 64));
     header.push('\n');
-    let mut out = Vec::with_capacity(10 + header.len() + 8 * array.shape.iter().product::<usize>());
-    out.extend_from_slice(b"\x93NUMPY\x01\x00");
-    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    out.extend_from_slice(header.as_bytes());
+    out.write_all(b"\x93NUMPY\x01\x00")?;
+    out.write_all(&(header.len() as u16).to_le_bytes())?;
+    out.write_all(header.as_bytes())?;
+    let mut chunk: Vec<u8> = Vec::with_capacity(1 << 16);
+    let mut put = |out: &mut dyn Write, bytes: &[u8]| -> std::io::Result<()> {
+        chunk.extend_from_slice(bytes);
+        if chunk.len() >= 1 << 16 {
+            out.write_all(&chunk)?;
+            chunk.clear();
+        }
+        Ok(())
+    };
     match &array.data {
-        Data::F64(v) => v
-            .iter()
-            .for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
-        Data::I64(v) => v
-            .iter()
-            .for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
-        Data::U64(v) => v
-            .iter()
-            .for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
+        Data::F64(v) => v.iter().try_for_each(|x| put(out, &x.to_le_bytes()))?,
+        Data::I64(v) => v.iter().try_for_each(|x| put(out, &x.to_le_bytes()))?,
+        Data::U64(v) => v.iter().try_for_each(|x| put(out, &x.to_le_bytes()))?,
         Data::Text(v) => {
             for s in v {
                 let mut n = 0;
                 for c in s.chars() {
-                    out.extend_from_slice(&(c as u32).to_le_bytes());
+                    put(out, &(c as u32).to_le_bytes())?;
                     n += 1;
                 }
                 for _ in n..text_width {
-                    out.extend_from_slice(&0u32.to_le_bytes());
+                    put(out, &0u32.to_le_bytes())?;
                 }
             }
         }
     }
-    out
+    out.write_all(&chunk)
 }
 
 /// Write `arrays` as an `.npz` at `path`.
@@ -93,8 +104,7 @@ pub fn write_npz(path: &Path, arrays: &[Array]) -> anyhow::Result<()> {
     for array in arrays {
         zip.start_file(format!("{}.npy", array.name), options)
             .with_context(|| format!("writing {}", path.display()))?;
-        zip.write_all(&npy_bytes(array))
-            .with_context(|| format!("writing {}", path.display()))?;
+        write_npy(&mut zip, array).with_context(|| format!("writing {}", path.display()))?;
     }
     zip.finish()
         .with_context(|| format!("writing {}", path.display()))?
