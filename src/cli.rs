@@ -5,7 +5,7 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use clap::{Parser, Subcommand};
+use clap::Parser;
 
 mod clamp_watch;
 mod inverse;
@@ -16,147 +16,12 @@ mod signals;
 
 use agglo::output::{write_final_state_with, write_summary};
 use agglo::prelude::*;
+use agglo::readable::sci;
 use agglo::scenario::Stepping;
 use agglo::schedule::Pipeline;
 use clamp_watch::ClampWatch;
 
-/// Particle agglomeration in thermochemically reacting granular flows.
-#[derive(Parser, Debug)]
-#[command(name = "agglo", version, about, long_about = None)]
-pub struct Cli {
-    #[command(subcommand)]
-    pub command: Command,
-}
-
-#[derive(Subcommand, Debug)]
-pub enum Command {
-    /// Run a scenario to its end time.
-    Run(Box<RunArgs>),
-    /// Check a scenario (or inverse-problem) file and print what it describes, with the
-    /// pipeline it will run and why the other systems are left out.
-    Validate {
-        /// Scenario file (JSON).
-        scenario: PathBuf,
-    },
-    /// Print the JSON Schema of the scenario format (or, with --outputs, every output's
-    /// columns and summary keys with their units).
-    Schema {
-        /// Print the outputs' columns and keys (docs/outputs.md) instead.
-        #[arg(long)]
-        outputs: bool,
-    },
-    /// Summarise an MCAP recording: channels, counts, duration, scenario, final statistics.
-    Inspect {
-        /// Recording (MCAP) written by `agglo run --out`.
-        file: PathBuf,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-    },
-    /// Write a Foxglove layout fitted to a recording's box (camera distance and near plane
-    /// from its half-width D).
-    Layout {
-        /// Recording (MCAP) written by `agglo run --out`.
-        file: PathBuf,
-        /// Where to write the layout [default: next to the recording, RUN.layout.json].
-        #[arg(long, value_name = "FILE")]
-        out: Option<PathBuf>,
-    },
-    /// Numerical studies: speed against accuracy, and where methods fail.
-    #[command(subcommand)]
-    Study(StudyCommand),
-    /// Solve an inverse problem: genetic algorithm over ensemble-averaged costs (docs/model.md §12).
-    Optimize(inverse::OptimizeArgs),
-    /// Scan one scenario field of an inverse problem's base scenario (ensemble cost per point).
-    Scan(inverse::ScanArgs),
-}
-
-#[derive(Subcommand, Debug)]
-pub enum StudyCommand {
-    /// Run one scene under a ladder of numerical settings; write accuracy.csv and charts.
-    Accuracy {
-        /// Scenario file (JSON).
-        scenario: PathBuf,
-        /// Output directory.
-        #[arg(long)]
-        out: PathBuf,
-        /// Timed repeats per setting (median wall time), ≥ 1.
-        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
-        repeats: u32,
-        /// Seeds of the reference ensemble (noise band), ≥ 1.
-        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
-        seeds: u32,
-        /// A published b_f/b0 to draw on the growth chart (e.g. 3.23 for P04).
-        #[arg(long)]
-        target_growth: Option<f64>,
-        /// Runs at once (1: timings do not share cores; 0 = one per core).
-        #[arg(long, default_value_t = 1)]
-        threads: usize,
-    },
-    /// Stability maps of the pair solve and cooling, and missed collisions against step size.
-    Stability {
-        /// Output directory.
-        #[arg(long)]
-        out: PathBuf,
-        /// Scene of the step-size study (default: the built-in study scene).
-        #[arg(long)]
-        scenario: Option<PathBuf>,
-        /// Seeds of the step-size study, ≥ 1.
-        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
-        seeds: u32,
-    },
-    /// Run one scene under each alternative reading of the papers over an ensemble of seeds;
-    /// write readings.csv, runs.csv, readings.md and a chart.
-    Readings(agglo::study::readings::ReadingsArgs),
-}
-
-#[derive(clap::Args, Debug)]
-pub struct RunArgs {
-    /// Scenario file (JSON).
-    #[arg(required_unless_present_any = ["from", "resume"], conflicts_with_all = ["from", "resume"])]
-    pub scenario: Option<PathBuf>,
-    /// Continue a stopped or killed run from the last checkpoint in its restart file
-    /// (written by a scene with `output.restart`; given the run's recording, the restart
-    /// file beside it): the final state and summary counters are those of the
-    /// uninterrupted run. The scenario is the one embedded in the file;
-    /// its output paths are ignored (pass --out / --final-state / --summary / tables);
-    /// checkpoints go on being written to the same file (or --restart).
-    #[arg(long, value_name = "RESTART", conflicts_with_all = ["from", "set", "seed"])]
-    pub resume: Option<PathBuf>,
-    /// Write restart checkpoints to this file (overrides `output.restart.path`; the
-    /// interval is `output.restart.every`, e.g. `--set output.restart.every=1e-3`).
-    #[arg(long, value_name = "FILE")]
-    pub restart: Option<PathBuf>,
-    /// Re-run the scenario embedded in this recording (MCAP); the output paths it names are
-    /// ignored (pass --out / --final-state / --summary).
-    #[arg(long, value_name = "RECORDING")]
-    pub from: Option<PathBuf>,
-    /// Record the run to this MCAP file for Foxglove (overrides `output.mcap`); a
-    /// Foxglove layout fitted to the box is written beside it (RUN.layout.json).
-    #[arg(long, value_name = "FILE")]
-    pub out: Option<PathBuf>,
-    /// Override the scenario's seed.
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Write the observables and counters as JSON here.
-    #[arg(long)]
-    pub summary: Option<PathBuf>,
-    /// Write one CSV row per body at the end here.
-    #[arg(long)]
-    pub final_state: Option<PathBuf>,
-    /// Time series, size distribution and snapshots, and when they are sampled.
-    #[command(flatten)]
-    pub tables: agglo::output::TableArgs,
-    /// Override a scenario field: PATH=VALUE, VALUE parsed as JSON (else a string), e.g.
-    /// `--set time.end=0.01 --set cloud.size_ratio=0.3` (repeatable; checked as the file is).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
-    /// No progress bar and no end-of-run report (warnings still go to stderr).
-    #[arg(long, short)]
-    pub quiet: bool,
-    #[command(flatten)]
-    pub live: live::LiveArgs,
-}
+pub use agglo::cli_args::{Cli, Command, RunArgs, StudyCommand};
 
 /// Parse arguments and run the chosen command (under `mpirun`, rank 0 runs it and the
 /// other ranks serve its simulations).
@@ -177,7 +42,21 @@ pub fn main() -> anyhow::Result<()> {
 fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow::Result<()> {
     match command {
         Command::Run(args) => run(*args),
-        Command::Validate { scenario } => validate(&scenario),
+        Command::Validate {
+            scenario,
+            set,
+            seed,
+        } => validate(&scenario, &set, seed),
+        Command::Completions { shell } => {
+            use std::io::Write;
+            std::io::stdout().write_all(&agglo::cli_args::completions(shell))?;
+            Ok(())
+        }
+        Command::Man => {
+            use std::io::Write;
+            std::io::stdout().write_all(&agglo::cli_args::man_page()?)?;
+            Ok(())
+        }
         Command::Study(study) => run_study(study, cluster),
         Command::Schema { outputs: true } => {
             print!("{}", agglo::output::schema::outputs_markdown());
@@ -209,8 +88,14 @@ fn load(path: &Path) -> anyhow::Result<Scenario> {
     Scenario::load(path).with_context(|| format!("loading scenario {}", path.display()))
 }
 
-fn validate(path: &Path) -> anyhow::Result<()> {
+fn validate(path: &Path, settings: &[String], seed: Option<u64>) -> anyhow::Result<()> {
     if is_inverse_file(path) {
+        anyhow::ensure!(
+            settings.is_empty() && seed.is_none(),
+            "{}: --set and --seed apply to scenario files; an inverse problem's base \
+             scenario is checked as it is written",
+            path.display()
+        );
         let problem = agglo::inverse::InverseProblem::load(path)
             .with_context(|| format!("loading inverse problem {}", path.display()))?;
         println!(
@@ -222,15 +107,21 @@ fn validate(path: &Path) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    let s = load(path)?;
+    let mut s = load(path)?;
+    if !settings.is_empty() {
+        s = s.with_settings(settings)?;
+    }
+    if let Some(seed) = seed {
+        s.seed = seed;
+    }
     println!(
-        "{}: valid — N = {}, b0 = {:.4e} m, volume fraction {:.4}, D = {:e} m, T = {:e} s, seed {}",
+        "{}: valid — N = {}, b0 = {:.4e} m, volume fraction {:.4}, D = {} m, T = {} s, seed {}",
         s.name,
         s.cloud.count,
         s.primary_radius(),
         s.volume_fraction(),
-        s.domain.half_width,
-        s.time.end,
+        sci(s.domain.half_width),
+        sci(s.time.end),
         s.seed
     );
     let pipeline = s.pipeline().context("building the scene's pipeline")?;
@@ -238,9 +129,9 @@ fn validate(path: &Path) -> anyhow::Result<()> {
     if let Some(restart) = &s.output.restart {
         let before_end = (s.time.end / restart.every).ceil() as u64 - 1;
         println!(
-            "restart checkpoints: every {:e} s of simulated time, {before_end} before T \
+            "restart checkpoints: every {} s of simulated time, {before_end} before T \
              (agglo run --resume continues from the last one)",
-            restart.every
+            sci(restart.every)
         );
     }
     let memory = agglo::memory::MemoryEstimate::of(&s);

@@ -25,6 +25,7 @@
 //! All quantities are SI and `f64`.
 
 pub mod charts;
+pub mod cli_args;
 pub mod cloud_file;
 pub mod farm;
 pub mod huge_pages;
@@ -32,6 +33,7 @@ pub mod inverse;
 pub mod live;
 pub mod memory;
 pub mod output;
+pub mod readable;
 pub mod record;
 pub mod restart;
 pub mod scenario;

@@ -16,6 +16,7 @@ mod energy_ledgers;
 mod events;
 mod extension;
 mod fields;
+mod first_day;
 mod hooks;
 mod initial_data;
 mod inverse;
