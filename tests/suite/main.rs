@@ -12,6 +12,7 @@ mod cli;
 mod closed_form;
 mod conservation;
 mod determinism;
+mod docs;
 mod energy_ledgers;
 mod events;
 mod extension;
