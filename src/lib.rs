@@ -33,7 +33,6 @@ pub mod inverse;
 pub mod live;
 pub mod memory;
 pub mod output;
-pub mod readable;
 pub mod record;
 pub mod restart;
 pub mod scenario;
@@ -41,8 +40,8 @@ pub mod study;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{
-    bodies, carried, cloud, components, error, hooks, laws, observables, params, resources, scene,
-    schedule, setup, totals,
+    bodies, carried, cloud, components, error, hooks, laws, observables, params, readable,
+    resources, scene, schedule, setup, totals,
 };
 /// The built-in physics plugins (the `agglo-systems` crate).
 pub use agglo_systems as systems;
