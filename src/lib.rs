@@ -34,6 +34,7 @@ pub mod memory;
 pub mod output;
 pub mod record;
 pub mod restart;
+pub mod run;
 pub mod scenario;
 pub mod study;
 
