@@ -35,6 +35,7 @@ pub mod memory;
 pub mod output;
 pub mod record;
 pub mod restart;
+pub mod run;
 pub mod scenario;
 pub mod study;
 
