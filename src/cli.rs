@@ -201,14 +201,15 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         && !args.quiet
     {
         println!(
-            "resuming {name} at t = {t:e} s (step {step}, {bodies} bodies) from {}",
+            "resuming {name} at t = {} s (step {step}, {bodies} bodies) from {}",
+            sci(t),
             file.display()
         );
     }
     let outcome = run.advance(Until::End, &mut |_| ControlFlow::Continue(()));
     let end = run.finish(&outcome);
     if !args.quiet {
-        print_outputs(&end);
+        print_outputs(&end, outcome.is_ok());
         print_report(&end.summary);
     }
     if let Some(e) = end.output_error {
@@ -285,8 +286,9 @@ fn run_plan(args: &RunArgs) -> anyhow::Result<RunPlan> {
     Ok(plan)
 }
 
-/// What the run wrote: the recording and its layout, the checkpoints.
-fn print_outputs(end: &RunEnd) {
+/// What the run wrote: the recording and its layout, the checkpoints (and, when the run
+/// did not reach its end time, how to continue it).
+fn print_outputs(end: &RunEnd, finished: bool) {
     if let Some((path, rep)) = &end.recording {
         println!(
             "recorded {} snapshots ({} deletions, {} events) to {} ({:.2} MB); \
@@ -305,15 +307,18 @@ fn print_outputs(end: &RunEnd) {
         match written.count {
             0 => println!("no checkpoint reached (restart file {})", path.display()),
             count => println!(
-                "{count} checkpoints written to {} (the last at t = {:e} s, {:.2} MB; \
-                 {:.3} s taking them, {:.3} s writing them); \
-                 continue with `agglo run --resume {}`",
+                "{count} checkpoints written to {} (the last at t = {} s, {:.2} MB; \
+                 {:.3} s taking them, {:.3} s writing them); {}",
                 path.display(),
-                written.time,
+                sci(written.time),
                 written.bytes as f64 / 1e6,
                 end.sim.checkpoint_seconds(),
                 written.writing_seconds,
-                path.display()
+                if finished {
+                    "the run reached its end time: nothing to resume".to_string()
+                } else {
+                    format!("continue with `agglo run --resume {}`", path.display())
+                }
             ),
         }
     }
@@ -323,8 +328,12 @@ fn print_report(s: &Summary) {
     let g = &s.growth;
     let c = &s.counters;
     println!(
-        "{} (seed {}): t = {:.4e} s in {} steps, {:.3} s wall",
-        s.scenario, s.seed, s.time, s.steps, s.wall_seconds
+        "{} (seed {}): t = {} s in {} steps, {:.3} s wall",
+        s.scenario,
+        s.seed,
+        sci(s.time),
+        s.steps,
+        s.wall_seconds
     );
     println!(
         "  bodies {} → {}, b_f/b0 = {:.4}, n_f = {:.3}, Π04 = {:.4}, Π02 = {:.4e}",

@@ -194,6 +194,9 @@ pub struct RunArgs {
     pub tables: crate::output::TableArgs,
     /// Override a scenario field: PATH=VALUE, VALUE parsed as JSON (else a string), e.g.
     /// `--set time.end=0.01 --set cloud.size_ratio=0.3` (repeatable; checked as the file is).
+    /// A field inside a section the scenario leaves out creates the section
+    /// (`--set output.restart.every=1e-3`); `null` removes an optional field (`--set
+    /// cloud.radius=1e-4 --set cloud.size_ratio=null`).
     #[arg(long = "set", value_name = "PATH=VALUE")]
     pub set: Vec<String>,
     /// No progress bar and no end-of-run report (warnings still go to stderr).

@@ -213,3 +213,40 @@ fn completions_and_the_man_page_generate_and_name_every_subcommand() {
         "the allowed shells are named"
     );
 }
+
+/// A run that reached its end time has nothing to resume, and says so; one stopped on the
+/// way (here by `time.max_steps`) names the command that continues it. Both print their
+/// times as a person reads them.
+#[test]
+fn only_an_unfinished_run_says_continue_with_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        agglo()
+            .current_dir(dir.path())
+            .args(["run", &quick_demo(), "--set", "output.restart.every=1e-3"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--restart", "done.restart"]);
+    let (stdout, stderr) = text(&out);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("3 checkpoints written to done.restart (the last at t = 3e-3 s")
+            && stdout.contains("nothing to resume"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("--resume"), "{stdout}");
+    assert!(stdout.contains("): t = 4e-3 s in "), "{stdout}");
+
+    // quick_demo reaches T = 4e-3 s in 1518 steps; 1200 pass two checkpoints.
+    let out = run(&["--restart", "cut.restart", "--set", "time.max_steps=1200"]);
+    let (stdout, stderr) = text(&out);
+    assert!(!out.status.success());
+    assert!(
+        stdout.contains("2 checkpoints written to cut.restart")
+            && stdout.contains("continue with `agglo run --resume cut.restart`"),
+        "{stdout}"
+    );
+    assert!(stderr.contains("of 4e-3 s"), "{stderr}");
+}
