@@ -45,6 +45,7 @@ class Simulation:
         final_state: Optional[Union[str, os.PathLike]] = None,
         live: Union[bool, str, None] = None,
         progress: bool = False,
+        command_line: Optional[str] = None,
     ) -> bool:
         """Advance to ``until`` [s] (the first step boundary at or after it), or to the
         end time T. Returns True once T is reached; the outputs are then finalised.
@@ -60,7 +61,9 @@ class Simulation:
         - ``record``: an MCAP recording for Foxglove (a layout is written beside it);
         - ``summary``, ``final_state``: files as ``--summary`` and ``--final-state``;
         - ``live``: True or "HOST:PORT" to serve the run to Foxglove live;
-        - ``progress``: a progress line on stderr (on a terminal).
+        - ``progress``: a progress line on stderr (on a terminal);
+        - ``command_line``: the text the recording keeps as its command line (default
+          ``python: agglo.Simulation.run``; give ``agglo run``'s to get its exact bytes).
         """
         table_map: Optional[Dict[str, Optional[str]]] = None
         if tables is not None:
@@ -83,6 +86,7 @@ class Simulation:
             final_state=None if final_state is None else os.fspath(final_state),
             live=live,
             progress=bool(progress),
+            command_line=command_line,
         )
 
     def step(self, n: int = 1) -> bool:

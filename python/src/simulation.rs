@@ -82,6 +82,7 @@ struct Outputs {
     final_state: Option<PathBuf>,
     live: Option<String>,
     progress: bool,
+    command_line: Option<String>,
 }
 
 impl Outputs {
@@ -131,6 +132,9 @@ impl Inner {
         }
         let mut plan = RunPlan::new(self.scenario.clone()).map_err(scenario_error)?;
         plan.progress = outputs.progress;
+        plan.command_line = outputs
+            .command_line
+            .unwrap_or_else(|| "python: agglo.Simulation.run".into());
         for (name, path) in outputs.tables {
             if !TABLES.contains(&name.as_str()) {
                 return Err(scenario_error(format!(
@@ -294,9 +298,10 @@ impl Simulation {
     /// writing the outputs chosen (before the first step): `tables` maps a table name
     /// (series, sizes, snapshots, collisions) to a path, or to None to keep it in memory;
     /// `sampling` is the JSON of `output.sampling`; `record`, `summary`, `final_state`
-    /// are paths; `live` an address to serve the run on. Returns True once T is reached
+    /// are paths; `live` an address to serve the run on; `command_line` what the
+    /// recording keeps as its command line. Returns True once T is reached
     /// (the outputs are then finalised).
-    #[pyo3(signature = (until=None, tables=None, sampling=None, record=None, summary=None, final_state=None, live=None, progress=false))]
+    #[pyo3(signature = (until=None, tables=None, sampling=None, record=None, summary=None, final_state=None, live=None, progress=false, command_line=None))]
     #[allow(clippy::too_many_arguments)]
     fn run(
         &self,
@@ -309,6 +314,7 @@ impl Simulation {
         final_state: Option<PathBuf>,
         live: Option<String>,
         progress: bool,
+        command_line: Option<String>,
     ) -> PyResult<bool> {
         guard(|| {
             if let Some(t) = until
@@ -327,6 +333,7 @@ impl Simulation {
                 final_state,
                 live,
                 progress,
+                command_line,
             })?;
             let until = until.map_or(Until::End, Until::Time);
             self.advance_locked(py, &mut inner, until)
