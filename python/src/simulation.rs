@@ -427,6 +427,20 @@ impl Simulation {
         })
     }
 
+    /// Seconds the engine takes to read every body (`Simulation::bodies`, no conversion):
+    /// the reference of `bodies()`'s cost in python/bench.py.
+    fn _time_bodies_read(&self, py: Python<'_>) -> PyResult<f64> {
+        let inner = self.lock()?;
+        let sim = inner.sim();
+        Ok(py.detach(|| {
+            let start = Instant::now();
+            let bodies = sim.bodies();
+            let seconds = start.elapsed().as_secs_f64();
+            drop(bodies);
+            seconds
+        }))
+    }
+
     /// A table kept in memory (`run(tables={"series": None})`), once the run is
     /// finished, as a dict of columns.
     fn table<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
