@@ -89,6 +89,28 @@ class Simulation:
             command_line=command_line,
         )
 
+    def on_impacts(self, function, *, every: Optional[float] = None, every_events: Optional[int] = None) -> None:
+        """Call ``function(batch)`` with the impacts, in batches: every ``every`` [s] of
+        simulated time or every ``every_events`` impacts, and at T. ``batch`` is a dict of
+        NumPy columns: t, id_a, id_b, mass_a, mass_b, normal_speed, tangential_speed,
+        restitution, heat, and outcome (a list of "bounce"/"bond"). Collected in Rust;
+        Python runs once per batch. Before the first step."""
+        self._sim.add_hook("impacts", function, every, every_events)
+
+    def on_merges(self, function, *, every: Optional[float] = None, every_events: Optional[int] = None) -> None:
+        """As :meth:`on_impacts`, for merges: t, parent_a, parent_b, child, mass."""
+        self._sim.add_hook("merges", function, every, every_events)
+
+    def on_fragments(self, function, *, every: Optional[float] = None, every_events: Optional[int] = None) -> None:
+        """As :meth:`on_impacts`, for fragmentations: t, parent, parent_mass, and children
+        (a list of id arrays)."""
+        self._sim.add_hook("fragments", function, every, every_events)
+
+    def on_sample(self, function, *, every: float) -> None:
+        """Call ``function({"t": t, "bodies": columns})`` every ``every`` [s] of
+        simulated time (at the first step boundary at or after each multiple) and at T."""
+        self._sim.add_hook("sample", function, every, None)
+
     def step(self, n: int = 1) -> bool:
         """Advance ``n`` steps (events, on the event core), or to T. True once at T."""
         return self._sim.step(int(n))

@@ -9,6 +9,7 @@
 mod columns;
 mod ensemble;
 mod errors;
+mod hooks;
 mod scenario;
 mod simulation;
 

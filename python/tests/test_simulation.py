@@ -195,3 +195,51 @@ def test_errors_name_the_field_and_no_panic_crosses(scenarios, tmp_path):
         agglo.Simulation(quick(scenarios)).run(record=tmp_path / "no" / "such" / "dir.mcap")
     with pytest.raises(agglo.ScenarioError, match="seeds"):
         agglo.ensemble(quick(scenarios), seeds=[])
+
+
+def test_hooks_get_every_impact_merge_and_sample_in_batches(scenarios, tmp_path):
+    sim = agglo.Simulation(quick(scenarios), seed=5)
+    impacts, merges, samples, calls = [], [], [], []
+
+    def on_impacts(batch):
+        calls.append(len(batch["t"]))
+        impacts.append(pd.DataFrame(batch))
+
+    sim.on_impacts(on_impacts, every_events=100)
+    sim.on_merges(lambda b: merges.append(len(b["child"])), every=2e-4)
+    sim.on_sample(lambda s: samples.append((s["t"], len(s["bodies"]["id"]))), every=2.5e-4)
+    sim.run(tables={"collisions": tmp_path / "c.csv", "series": None})
+    log = pd.read_csv(tmp_path / "c.csv")
+    got = pd.concat(impacts, ignore_index=True)
+    # Every impact of the collision log, in order, in batches of 100 (the last one shorter).
+    assert len(got) == len(log) == sim.counters["impacts"]
+    assert all(n == 100 for n in calls[:-1]) and 0 < calls[-1] <= 100
+    np.testing.assert_array_equal(got["t"], log["t"])
+    np.testing.assert_array_equal(got["id_a"], log["id_a"])
+    assert sum(merges) == sim.series()["merges"][-1] > 0
+    # At the first step boundary at or after 2.5, 5, 7.5 and 10 (= T) × 1e-4 s, once each.
+    assert len(samples) == 4, samples
+    for k, (t, n) in enumerate(samples, start=1):
+        assert k * 2.5e-4 <= t < k * 2.5e-4 + 2e-5 and n > 0, (k, t)
+    assert samples[-1][0] == sim.t
+    # Hooks read only: the run is the run without them.
+    plain = agglo.Simulation(quick(scenarios), seed=5)
+    plain.run()
+    np.testing.assert_array_equal(plain.bodies()["x"], sim.bodies()["x"])
+
+
+def test_an_exception_in_a_hook_stops_the_run_naming_the_step_and_time(scenarios):
+    sim = agglo.Simulation(quick(scenarios), seed=5)
+
+    def fail(batch):
+        raise ZeroDivisionError("from the hook")
+
+    sim.on_impacts(fail, every_events=50)
+    with pytest.raises(agglo.AggloError, match=r"on_impacts raised at step \d+, t = .* s: from the hook") as e:
+        sim.run()
+    assert isinstance(e.value.__cause__, ZeroDivisionError)
+    assert not sim.finished and sim.t > 0
+    with pytest.raises(agglo.ScenarioError, match="before the first step"):
+        sim.on_merges(print, every=1e-4)
+    with pytest.raises(agglo.ScenarioError, match="every_events"):
+        agglo.Simulation(quick(scenarios)).on_impacts(print, every_events=0)
