@@ -862,6 +862,27 @@ impl Simulation {
         Ok(())
     }
 
+    /// A restart snapshot of now, taken as a checkpoint is: every body brought to now,
+    /// the state captured, and the world restored from that capture, so that this run
+    /// and any run resumed from the snapshot continue bit for bit alike (the Python
+    /// module pickles a simulation with it). A finished run is refused: its end is done.
+    pub fn snapshot_now(&mut self) -> Result<crate::restart::RestartSnapshot, SimError> {
+        use crate::restart::{capture, restore};
+        if self.completed {
+            let c = self.clock();
+            return Err(SimError::Schedule(format!(
+                "the run is finished (t = {:e} s at step {}): there is nothing to continue",
+                c.time, c.step
+            )));
+        }
+        let start = std::time::Instant::now();
+        self.bring_all_to_now();
+        let snapshot = capture(&mut self.world);
+        restore(&mut self.world, &snapshot).map_err(SimError::Schedule)?;
+        self.checkpoint_seconds += start.elapsed().as_secs_f64();
+        Ok(snapshot)
+    }
+
     /// Wall-clock seconds spent taking checkpoints so far: bringing bodies to the
     /// checkpoint time, capturing, restoring (part of [`Simulation::wall_seconds`]).
     pub fn checkpoint_seconds(&self) -> f64 {

@@ -33,6 +33,18 @@ class Simulation:
         if not isinstance(scenario, Scenario):
             raise TypeError("Simulation(scenario): give an agglo.Scenario")
         self._sim = _agglo.Simulation(scenario._inner, None if seed is None else int(seed))
+        self._hooks = []
+
+    def __reduce__(self):
+        """Pickled through a restart snapshot of now (taken as a checkpoint is: every body
+        brought to now), with the hooks; the copy continues as this run does. Output
+        files are not carried (they are this run's); a hook that cannot be pickled
+        (a lambda, a closure) fails here with pickle's message."""
+        return (_unpickle, (self._sim._restart_bytes(), list(self._hooks)))
+
+    def _add_hook(self, kind, function, every, every_events):
+        self._sim.add_hook(kind, function, every, every_events)
+        self._hooks.append((kind, function, every, every_events))
 
     def run(
         self,
@@ -95,21 +107,21 @@ class Simulation:
         NumPy columns: t, id_a, id_b, mass_a, mass_b, normal_speed, tangential_speed,
         restitution, heat, and outcome (a list of "bounce"/"bond"). Collected in Rust;
         Python runs once per batch. Before the first step."""
-        self._sim.add_hook("impacts", function, every, every_events)
+        self._add_hook("impacts", function, every, every_events)
 
     def on_merges(self, function, *, every: Optional[float] = None, every_events: Optional[int] = None) -> None:
         """As :meth:`on_impacts`, for merges: t, parent_a, parent_b, child, mass."""
-        self._sim.add_hook("merges", function, every, every_events)
+        self._add_hook("merges", function, every, every_events)
 
     def on_fragments(self, function, *, every: Optional[float] = None, every_events: Optional[int] = None) -> None:
         """As :meth:`on_impacts`, for fragmentations: t, parent, parent_mass, and children
         (a list of id arrays)."""
-        self._sim.add_hook("fragments", function, every, every_events)
+        self._add_hook("fragments", function, every, every_events)
 
     def on_sample(self, function, *, every: float) -> None:
         """Call ``function({"t": t, "bodies": columns})`` every ``every`` [s] of
         simulated time (at the first step boundary at or after each multiple) and at T."""
-        self._sim.add_hook("sample", function, every, None)
+        self._add_hook("sample", function, every, None)
 
     def step(self, n: int = 1) -> bool:
         """Advance ``n`` steps (events, on the event core), or to T. True once at T."""
@@ -187,3 +199,12 @@ class Simulation:
     def __repr__(self) -> str:
         state = "finished" if self.finished else "running"
         return f"<agglo.Simulation {self.scenario.name!r}: t = {self.t:.6g} s, {self.steps} steps, {state}>"
+
+
+def _unpickle(state: bytes, hooks) -> Simulation:
+    sim = Simulation.__new__(Simulation)
+    sim._sim = _agglo.Simulation._from_restart(state)
+    sim._hooks = []
+    for kind, function, every, every_events in hooks:
+        sim._add_hook(kind, function, every, every_events)
+    return sim

@@ -20,7 +20,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBytes, PyDict};
 
 use agglo::error::SimError;
 use agglo::output::SampleSchedule;
@@ -65,6 +65,10 @@ struct Inner {
     plan: PlanOutputs,
     /// The Python hooks, called in batches (hooks.rs).
     hooks: Vec<crate::hooks::Hook>,
+    /// The snapshot this simulation was unpickled from (kept to rebuild the run).
+    resume: Option<agglo::restart::RestartSnapshot>,
+    /// True once this object advanced the run (outputs and hooks come before).
+    stepped: bool,
     /// Directory of the tables kept in memory (read back and removed at the end).
     memory_dir: Option<PathBuf>,
     memory_tables: Vec<String>,
@@ -231,6 +235,10 @@ impl Inner {
         if o.final_state.is_some() {
             plan.final_state = o.final_state;
         }
+        plan.resume = self.resume.clone().map(|snapshot| agglo::run::Resume {
+            file: PathBuf::from("<pickle>"),
+            snapshot,
+        });
         // Drop the run built before building the new one (its live server, if any,
         // would hold the port).
         self.state = State::Switching;
@@ -244,9 +252,9 @@ impl Inner {
         Ok(())
     }
 
-    /// True before the first step.
+    /// True before the first step (of this object: an unpickled run may be far along).
     fn fresh(&self) -> bool {
-        matches!(&self.state, State::Running(run) if run.sim().clock().step == 0)
+        !self.stepped && matches!(self.state, State::Running(_))
     }
 
     /// Finalise the outputs with `outcome` and keep the finished simulation.
@@ -365,6 +373,8 @@ impl Simulation {
                     has_outputs: false,
                     plan: outputs,
                     hooks: Vec::new(),
+                    resume: None,
+                    stepped: false,
                     memory_dir: None,
                     memory_tables: Vec::new(),
                 }),
@@ -508,6 +518,60 @@ impl Simulation {
         })
     }
 
+    /// The run as restart-file bytes (`agglo::restart::encode`), taken as a checkpoint
+    /// is (every body brought to now): this run and one made from the bytes continue
+    /// alike. What `pickle` keeps.
+    fn _restart_bytes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        guard(|| {
+            let mut inner = self.lock()?;
+            let scenario = inner.scenario.clone();
+            let State::Running(run) = &mut inner.state else {
+                return Err(AggloError::new_err(
+                    "a finished simulation is not pickled: keep its results (bodies(), \
+                     summary(), the tables) instead",
+                ));
+            };
+            let snapshot = run.snapshot_now().map_err(|e| agglo_error(e.into()))?;
+            Ok(PyBytes::new(
+                py,
+                &agglo::restart::encode(&scenario, &snapshot),
+            ))
+        })
+    }
+
+    /// A simulation continuing from restart-file bytes (`_restart_bytes`, or a restart
+    /// file's content). Its scenario's output files are not written (they are the
+    /// original run's); choose outputs with `run()`.
+    #[staticmethod]
+    fn _from_restart(bytes: &[u8]) -> PyResult<Self> {
+        guard(|| {
+            let (mut scenario, snapshot) =
+                agglo::restart::decode(std::path::Path::new("<pickle>"), bytes)
+                    .map_err(scenario_error)?;
+            let o = &mut scenario.output;
+            (o.summary, o.final_state, o.mcap, o.restart) = (None, None, None, None);
+            (o.series, o.sizes, o.snapshots, o.collisions) = (None, None, None, None);
+            let mut inner = Inner {
+                scenario,
+                state: State::Switching,
+                has_outputs: false,
+                plan: PlanOutputs::default(),
+                hooks: Vec::new(),
+                resume: Some(snapshot),
+                stepped: false,
+                memory_dir: None,
+                memory_tables: Vec::new(),
+            };
+            inner.plan.tables = RunPlan::new(inner.scenario.clone())
+                .map_err(scenario_error)?
+                .tables;
+            inner.rebuild()?;
+            Ok(Self {
+                inner: Mutex::new(inner),
+            })
+        })
+    }
+
     /// Simulated time [s].
     #[getter]
     fn t(&self) -> PyResult<f64> {
@@ -610,6 +674,7 @@ impl Simulation {
 
 impl Simulation {
     fn advance_locked(&self, py: Python<'_>, inner: &mut Inner, until: Until) -> PyResult<bool> {
+        inner.stepped = true;
         let Inner { state, hooks, .. } = inner;
         let State::Running(run) = state else {
             return Ok(true);
