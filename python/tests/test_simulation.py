@@ -130,6 +130,10 @@ def test_ctrl_c_raises_keyboard_interrupt_and_the_run_continues_to_the_same_byte
     assert raised_at - interrupted_at[0] < 1.0
     assert sim.run()
     assert (tmp_path / "ref.csv").read_bytes() == (tmp_path / "cut.csv").read_bytes()
+    # Python's own Ctrl-C handling is untouched after the run returns.
+    with pytest.raises(KeyboardInterrupt):
+        _thread.interrupt_main()
+        time.sleep(1.0)
     np.testing.assert_array_equal(reference.bodies()["x"], sim.bodies()["x"])
 
 
