@@ -466,9 +466,16 @@ impl SimBuilder {
         combine: crate::carried::Combine,
         split: crate::carried::Split,
     ) -> &mut Self {
+        let first = !self
+            .world
+            .contains_resource::<crate::carried::CarriedState>();
         self.world
             .get_resource_or_insert_with(crate::carried::CarriedState::default)
             .register::<C>(name, combine, split);
+        if first {
+            // Checkpoints keep every carried quantity, by body id.
+            self.add_restart_part(crate::carried::restart_part());
+        }
         self
     }
 
@@ -534,19 +541,6 @@ impl SimBuilder {
                 ));
             };
             add(&mut self.schedule);
-        }
-        if self
-            .world
-            .contains_resource::<crate::restart::Checkpoints>()
-            && self
-                .world
-                .contains_resource::<crate::carried::CarriedState>()
-        {
-            return Err(SimError::Schedule(
-                "restart checkpoints do not cover the per-body quantities an extension \
-                 carries (SimBuilder::carry): take no checkpoints in this scene"
-                    .into(),
-            ));
         }
         if let Err(e) = self.schedule.initialize(&mut self.world) {
             let message = e.to_string(self.schedule.graph(), &self.world);
