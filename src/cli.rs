@@ -15,7 +15,6 @@ use agglo::prelude::*;
 use agglo::readable::sci;
 use agglo::run::signals::StopRequest;
 use agglo::run::{Resume, Run, RunEnd, RunPlan, Until};
-use agglo::schedule::Pipeline;
 
 pub use agglo::cli_args::{Cli, Command, RunArgs, StudyCommand};
 
@@ -110,54 +109,12 @@ fn validate(path: &Path, settings: &[String], seed: Option<u64>) -> anyhow::Resu
     if let Some(seed) = seed {
         s.seed = seed;
     }
-    println!(
-        "{}: valid — N = {}, b0 = {:.4e} m, volume fraction {:.4}, D = {} m, T = {} s, seed {}",
-        s.name,
-        s.cloud.count,
-        s.primary_radius(),
-        s.volume_fraction(),
-        sci(s.domain.half_width),
-        sci(s.time.end),
-        s.seed
-    );
-    let pipeline = s.pipeline().context("building the scene's pipeline")?;
-    print!("{}", pipeline_text(&pipeline));
-    if let Some(restart) = &s.output.restart {
-        let before_end = (s.time.end / restart.every).ceil() as u64 - 1;
-        println!(
-            "restart checkpoints: every {} s of simulated time, {before_end} before T \
-             (agglo run --resume continues from the last one)",
-            sci(restart.every)
-        );
-    }
-    let memory = agglo::memory::MemoryEstimate::of(&s);
-    println!("{}", memory.describe());
-    if let Some(warning) = memory.check().map_err(anyhow::Error::msg)? {
+    let report = agglo::validate::report(&s)?;
+    print!("{}", report.text);
+    if let Some(warning) = report.warning {
         eprintln!("{warning}");
     }
     Ok(())
-}
-
-/// The pipeline as `validate` prints it: the core and why, the systems in order, and
-/// why each other system is left out.
-fn pipeline_text(p: &Pipeline) -> String {
-    let mut text = format!("core: {} — {}\n", p.core, p.core_reason);
-    text += &format!("pipeline ({} systems, in order):\n", p.systems.len());
-    for (i, system) in p.systems.iter().enumerate() {
-        text += &format!("  {:>2}. {system}\n", i + 1);
-    }
-    for line in &p.forces {
-        text += &format!("{line}\n");
-    }
-    if p.left_out.is_empty() {
-        text += "left out: nothing\n";
-    } else {
-        text += "left out:\n";
-        for line in &p.left_out {
-            text += &format!("  - {line}\n");
-        }
-    }
-    text
 }
 
 /// `agglo layout`: a layout fitted to an existing recording's box.
