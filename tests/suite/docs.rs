@@ -171,7 +171,7 @@ fn shell_words(line: &str) -> Vec<String> {
     let mut quoted_var = false;
     let mut chars = line.chars().peekable();
     let mut push = |word: &mut String, in_word: &mut bool, quoted_var: bool| {
-        if *in_word && !(word.starts_with('$') && !quoted_var) {
+        if *in_word && (quoted_var || !word.starts_with('$')) {
             words.push(std::mem::take(word));
         }
         word.clear();
