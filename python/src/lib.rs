@@ -6,6 +6,7 @@
 //! No Rust panic crosses into Python: every entry point runs under
 //! [`errors::guard`], which turns a panic into `agglo.AggloError`.
 
+mod carry;
 mod columns;
 mod ensemble;
 mod errors;
