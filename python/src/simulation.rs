@@ -69,6 +69,8 @@ struct Inner {
     resume: Option<agglo::restart::RestartSnapshot>,
     /// True once this object advanced the run (outputs and hooks come before).
     stepped: bool,
+    /// The quantities carried from Python (carry.rs).
+    carry: Vec<crate::carry::Spec>,
     /// Directory of the tables kept in memory (read back and removed at the end).
     memory_dir: Option<PathBuf>,
     memory_tables: Vec<String>,
@@ -115,10 +117,6 @@ impl Outputs {
             || self.live.is_some()
             || self.progress
     }
-}
-
-fn start(plan: RunPlan) -> PyResult<Run> {
-    Run::start(plan, Arc::new(AtomicBool::new(false))).map_err(agglo_error)
 }
 
 impl Simulation {
@@ -242,10 +240,10 @@ impl Inner {
         // Drop the run built before building the new one (its live server, if any,
         // would hold the port).
         self.state = State::Switching;
-        let hooks = &self.hooks;
+        let (hooks, carry) = (&self.hooks, &self.carry);
         let run = Run::start_with(plan, Arc::new(AtomicBool::new(false)), |builder| {
             crate::hooks::subscribe(builder, hooks);
-            Ok(())
+            crate::carry::register(builder, carry)
         })
         .map_err(agglo_error)?;
         self.state = State::Running(Box::new(run));
@@ -289,6 +287,20 @@ impl Inner {
             None => Ok(()),
         }
     }
+}
+
+/// The carried quantities from their Python form.
+fn specs(carry: Vec<(String, String, String, Vec<f64>)>) -> PyResult<Vec<crate::carry::Spec>> {
+    let mut seen = std::collections::BTreeSet::new();
+    carry
+        .into_iter()
+        .map(|(name, combine, split, init)| {
+            if !seen.insert(name.clone()) {
+                return Err(scenario_error(format!("carry: `{name}` given twice")));
+            }
+            crate::carry::Spec::new(name, &combine, &split, init)
+        })
+        .collect()
 }
 
 /// A private directory for the tables kept in memory.
@@ -347,15 +359,21 @@ fn advance(
 
 #[pymethods]
 impl Simulation {
-    /// A run of `scenario` (its seed, or `seed`), with the built-in physics.
+    /// A run of `scenario` (its seed, or `seed`), with the built-in physics, carrying
+    /// the quantities of `carry`: (name, combine, split, initial values) each.
     #[new]
-    #[pyo3(signature = (scenario, seed=None))]
-    fn new(scenario: &Scenario, seed: Option<u64>) -> PyResult<Self> {
+    #[pyo3(signature = (scenario, seed=None, carry=Vec::new()))]
+    fn new(
+        scenario: &Scenario,
+        seed: Option<u64>,
+        carry: Vec<(String, String, String, Vec<f64>)>,
+    ) -> PyResult<Self> {
         guard(|| {
             let mut scenario = scenario.inner.clone();
             if let Some(seed) = seed {
                 scenario.seed = seed;
             }
+            let carry = specs(carry)?;
             let plan = RunPlan::new(scenario.clone()).map_err(scenario_error)?;
             // The scenario's own outputs (its `output` section), as `agglo run` takes them.
             let outputs = PlanOutputs {
@@ -365,19 +383,21 @@ impl Simulation {
                 final_state: plan.final_state.clone(),
                 ..Default::default()
             };
-            let run = start(plan)?;
+            let mut inner = Inner {
+                scenario,
+                state: State::Switching,
+                has_outputs: false,
+                plan: outputs,
+                hooks: Vec::new(),
+                resume: None,
+                stepped: false,
+                carry,
+                memory_dir: None,
+                memory_tables: Vec::new(),
+            };
+            inner.rebuild()?;
             Ok(Self {
-                inner: Mutex::new(Inner {
-                    scenario,
-                    state: State::Running(Box::new(run)),
-                    has_outputs: false,
-                    plan: outputs,
-                    hooks: Vec::new(),
-                    resume: None,
-                    stepped: false,
-                    memory_dir: None,
-                    memory_tables: Vec::new(),
-                }),
+                inner: Mutex::new(inner),
             })
         })
     }
@@ -543,7 +563,11 @@ impl Simulation {
     /// file's content). Its scenario's output files are not written (they are the
     /// original run's); choose outputs with `run()`.
     #[staticmethod]
-    fn _from_restart(bytes: &[u8]) -> PyResult<Self> {
+    #[pyo3(signature = (bytes, carry=Vec::new()))]
+    fn _from_restart(
+        bytes: &[u8],
+        carry: Vec<(String, String, String, Vec<f64>)>,
+    ) -> PyResult<Self> {
         guard(|| {
             let (mut scenario, snapshot) =
                 agglo::restart::decode(std::path::Path::new("<pickle>"), bytes)
@@ -559,6 +583,7 @@ impl Simulation {
                 hooks: Vec::new(),
                 resume: Some(snapshot),
                 stepped: false,
+                carry: specs(carry)?,
                 memory_dir: None,
                 memory_tables: Vec::new(),
             };
