@@ -466,9 +466,16 @@ impl SimBuilder {
         combine: crate::carried::Combine,
         split: crate::carried::Split,
     ) -> &mut Self {
+        let first = !self
+            .world
+            .contains_resource::<crate::carried::CarriedState>();
         self.world
             .get_resource_or_insert_with(crate::carried::CarriedState::default)
             .register::<C>(name, combine, split);
+        if first {
+            // Checkpoints keep every carried quantity, by body id.
+            self.add_restart_part(crate::carried::restart_part());
+        }
         self
     }
 
@@ -535,19 +542,6 @@ impl SimBuilder {
             };
             add(&mut self.schedule);
         }
-        if self
-            .world
-            .contains_resource::<crate::restart::Checkpoints>()
-            && self
-                .world
-                .contains_resource::<crate::carried::CarriedState>()
-        {
-            return Err(SimError::Schedule(
-                "restart checkpoints do not cover the per-body quantities an extension \
-                 carries (SimBuilder::carry): take no checkpoints in this scene"
-                    .into(),
-            ));
-        }
         if let Err(e) = self.schedule.initialize(&mut self.world) {
             let message = e.to_string(self.schedule.graph(), &self.world);
             return Err(SimError::Schedule(message));
@@ -610,6 +604,7 @@ impl SimBuilder {
             rotations: self.subscriptions.into_iter().map(|(_, f)| f).collect(),
             checkpoint: None,
             checkpoint_seconds: 0.0,
+            completed: false,
         })
     }
 }
@@ -740,6 +735,8 @@ pub struct Simulation {
     checkpoint: Option<crate::restart::RestartSnapshot>,
     /// Wall-clock seconds spent taking checkpoints (part of `wall_seconds`).
     checkpoint_seconds: f64,
+    /// True once the run reached T and was completed (see [`Simulation::run_until`]).
+    completed: bool,
 }
 
 impl Simulation {
@@ -859,6 +856,27 @@ impl Simulation {
         Ok(())
     }
 
+    /// A restart snapshot of now, taken as a checkpoint is: every body brought to now,
+    /// the state captured, and the world restored from that capture, so that this run
+    /// and any run resumed from the snapshot continue bit for bit alike (the Python
+    /// module pickles a simulation with it). A finished run is refused: its end is done.
+    pub fn snapshot_now(&mut self) -> Result<crate::restart::RestartSnapshot, SimError> {
+        use crate::restart::{capture, restore};
+        if self.completed {
+            let c = self.clock();
+            return Err(SimError::Schedule(format!(
+                "the run is finished (t = {:e} s at step {}): there is nothing to continue",
+                c.time, c.step
+            )));
+        }
+        let start = std::time::Instant::now();
+        self.bring_all_to_now();
+        let snapshot = capture(&mut self.world);
+        restore(&mut self.world, &snapshot).map_err(SimError::Schedule)?;
+        self.checkpoint_seconds += start.elapsed().as_secs_f64();
+        Ok(snapshot)
+    }
+
     /// Wall-clock seconds spent taking checkpoints so far: bringing bodies to the
     /// checkpoint time, capturing, restoring (part of [`Simulation::wall_seconds`]).
     pub fn checkpoint_seconds(&self) -> f64 {
@@ -877,6 +895,7 @@ impl Simulation {
     pub fn resume(&mut self, snapshot: &crate::restart::RestartSnapshot) -> Result<(), SimError> {
         crate::restart::restore(&mut self.world, snapshot).map_err(SimError::Schedule)?;
         self.checkpoint = None;
+        self.completed = false;
         Ok(())
     }
 
@@ -888,9 +907,25 @@ impl Simulation {
     /// Run to T, calling `observe` after every step; `Break` stops early with [`SimError::Interrupted`].
     pub fn run_with(
         &mut self,
+        observe: impl FnMut(&Simulation) -> ControlFlow<()>,
+    ) -> Result<(), SimError> {
+        self.run_until(|_| false, observe)
+    }
+
+    /// Step until `done` holds (asked before each step) or T is reached, calling
+    /// `observe` after every step; `Break` stops early with [`SimError::Interrupted`],
+    /// leaving a valid simulation that a later call continues bit for bit. At T the run
+    /// is completed once (the last force interval's kick, every body brought to T);
+    /// calling again after that does nothing.
+    pub fn run_until(
+        &mut self,
+        mut done: impl FnMut(&Simulation) -> bool,
         mut observe: impl FnMut(&Simulation) -> ControlFlow<()>,
     ) -> Result<(), SimError> {
         while !self.is_finished() {
+            if done(self) {
+                return Ok(());
+            }
             self.step()?;
             if observe(self).is_break() {
                 let c = self.clock();
@@ -900,11 +935,14 @@ impl Simulation {
                 });
             }
         }
-        if self.has_forces {
-            // The last interval's kick (forces act at the end of each interval).
-            kick(&mut self.world, true);
+        if !self.completed {
+            self.completed = true;
+            if self.has_forces {
+                // The last interval's kick (forces act at the end of each interval).
+                kick(&mut self.world, true);
+            }
+            self.bring_all_to_now();
         }
-        self.bring_all_to_now();
         Ok(())
     }
 

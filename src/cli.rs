@@ -5,164 +5,19 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use clap::{Parser, Subcommand};
+use clap::Parser;
 
-mod clamp_watch;
 mod inverse;
 mod kernel;
 mod live;
-mod progress;
 mod ranks;
-mod signals;
 
-use agglo::output::{write_final_state_with, write_summary};
 use agglo::prelude::*;
-use agglo::scenario::Stepping;
-use agglo::schedule::Pipeline;
-use clamp_watch::ClampWatch;
+use agglo::readable::sci;
+use agglo::run::signals::StopRequest;
+use agglo::run::{Resume, Run, RunEnd, RunPlan, Until};
 
-/// Particle agglomeration in thermochemically reacting granular flows.
-#[derive(Parser, Debug)]
-#[command(name = "agglo", version, about, long_about = None)]
-pub struct Cli {
-    #[command(subcommand)]
-    pub command: Command,
-}
-
-#[derive(Subcommand, Debug)]
-pub enum Command {
-    /// Run a scenario to its end time.
-    Run(Box<RunArgs>),
-    /// Check a scenario (or inverse-problem) file and print what it describes, with the
-    /// pipeline it will run and why the other systems are left out.
-    Validate {
-        /// Scenario file (JSON).
-        scenario: PathBuf,
-    },
-    /// Print the JSON Schema of the scenario format (or, with --outputs, every output's
-    /// columns and summary keys with their units).
-    Schema {
-        /// Print the outputs' columns and keys (docs/outputs.md) instead.
-        #[arg(long)]
-        outputs: bool,
-    },
-    /// Summarise an MCAP recording: channels, counts, duration, scenario, final statistics.
-    Inspect {
-        /// Recording (MCAP) written by `agglo run --out`.
-        file: PathBuf,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-    },
-    /// Write a Foxglove layout fitted to a recording's box (camera distance and near plane
-    /// from its half-width D).
-    Layout {
-        /// Recording (MCAP) written by `agglo run --out`.
-        file: PathBuf,
-        /// Where to write the layout [default: next to the recording, RUN.layout.json].
-        #[arg(long, value_name = "FILE")]
-        out: Option<PathBuf>,
-    },
-    /// Numerical studies: speed against accuracy, and where methods fail.
-    #[command(subcommand)]
-    Study(StudyCommand),
-    /// Solve an inverse problem: genetic algorithm over ensemble-averaged costs (docs/model.md §12).
-    Optimize(inverse::OptimizeArgs),
-    /// Scan one scenario field of an inverse problem's base scenario (ensemble cost per point).
-    Scan(inverse::ScanArgs),
-    /// Measure collision kernels and outcome probabilities on a coagulation code's mass
-    /// grid (DustPy, OpenFOAM population balance, explicit edges) over an ensemble of
-    /// seeds; write them as .npz (and a long Parquet table). Arrays and units:
-    /// docs/outputs.md, "agglo kernel".
-    Kernel(Box<kernel::KernelArgs>),
-}
-
-#[derive(Subcommand, Debug)]
-pub enum StudyCommand {
-    /// Run one scene under a ladder of numerical settings; write accuracy.csv and charts.
-    Accuracy {
-        /// Scenario file (JSON).
-        scenario: PathBuf,
-        /// Output directory.
-        #[arg(long)]
-        out: PathBuf,
-        /// Timed repeats per setting (median wall time), ≥ 1.
-        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
-        repeats: u32,
-        /// Seeds of the reference ensemble (noise band), ≥ 1.
-        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
-        seeds: u32,
-        /// A published b_f/b0 to draw on the growth chart (e.g. 3.23 for P04).
-        #[arg(long)]
-        target_growth: Option<f64>,
-        /// Runs at once (1: timings do not share cores; 0 = one per core).
-        #[arg(long, default_value_t = 1)]
-        threads: usize,
-    },
-    /// Stability maps of the pair solve and cooling, and missed collisions against step size.
-    Stability {
-        /// Output directory.
-        #[arg(long)]
-        out: PathBuf,
-        /// Scene of the step-size study (default: the built-in study scene).
-        #[arg(long)]
-        scenario: Option<PathBuf>,
-        /// Seeds of the step-size study, ≥ 1.
-        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
-        seeds: u32,
-    },
-    /// Run one scene under each alternative reading of the papers over an ensemble of seeds;
-    /// write readings.csv, runs.csv, readings.md and a chart.
-    Readings(agglo::study::readings::ReadingsArgs),
-}
-
-#[derive(clap::Args, Debug)]
-pub struct RunArgs {
-    /// Scenario file (JSON).
-    #[arg(required_unless_present_any = ["from", "resume"], conflicts_with_all = ["from", "resume"])]
-    pub scenario: Option<PathBuf>,
-    /// Continue a stopped or killed run from the last checkpoint in its restart file
-    /// (written by a scene with `output.restart`; given the run's recording, the restart
-    /// file beside it): the final state and summary counters are those of the
-    /// uninterrupted run. The scenario is the one embedded in the file;
-    /// its output paths are ignored (pass --out / --final-state / --summary / tables);
-    /// checkpoints go on being written to the same file (or --restart).
-    #[arg(long, value_name = "RESTART", conflicts_with_all = ["from", "set", "seed"])]
-    pub resume: Option<PathBuf>,
-    /// Write restart checkpoints to this file (overrides `output.restart.path`; the
-    /// interval is `output.restart.every`, e.g. `--set output.restart.every=1e-3`).
-    #[arg(long, value_name = "FILE")]
-    pub restart: Option<PathBuf>,
-    /// Re-run the scenario embedded in this recording (MCAP); the output paths it names are
-    /// ignored (pass --out / --final-state / --summary).
-    #[arg(long, value_name = "RECORDING")]
-    pub from: Option<PathBuf>,
-    /// Record the run to this MCAP file for Foxglove (overrides `output.mcap`); a
-    /// Foxglove layout fitted to the box is written beside it (RUN.layout.json).
-    #[arg(long, value_name = "FILE")]
-    pub out: Option<PathBuf>,
-    /// Override the scenario's seed.
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Write the observables and counters as JSON here.
-    #[arg(long)]
-    pub summary: Option<PathBuf>,
-    /// Write one CSV row per body at the end here.
-    #[arg(long)]
-    pub final_state: Option<PathBuf>,
-    /// Time series, size distribution and snapshots, and when they are sampled.
-    #[command(flatten)]
-    pub tables: agglo::output::TableArgs,
-    /// Override a scenario field: PATH=VALUE, VALUE parsed as JSON (else a string), e.g.
-    /// `--set time.end=0.01 --set cloud.size_ratio=0.3` (repeatable; checked as the file is).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
-    /// No progress bar and no end-of-run report (warnings still go to stderr).
-    #[arg(long, short)]
-    pub quiet: bool,
-    #[command(flatten)]
-    pub live: live::LiveArgs,
-}
+pub use agglo::cli_args::{Cli, Command, RunArgs, StudyCommand};
 
 /// Parse arguments and run the chosen command (under `mpirun`, rank 0 runs it and the
 /// other ranks serve its simulations).
@@ -183,7 +38,21 @@ pub fn main() -> anyhow::Result<()> {
 fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow::Result<()> {
     match command {
         Command::Run(args) => run(*args),
-        Command::Validate { scenario } => validate(&scenario),
+        Command::Validate {
+            scenario,
+            set,
+            seed,
+        } => validate(&scenario, &set, seed),
+        Command::Completions { shell } => {
+            use std::io::Write;
+            std::io::stdout().write_all(&agglo::cli_args::completions(shell))?;
+            Ok(())
+        }
+        Command::Man => {
+            use std::io::Write;
+            std::io::stdout().write_all(&agglo::cli_args::man_page()?)?;
+            Ok(())
+        }
         Command::Study(study) => run_study(study, cluster),
         Command::Schema { outputs: true } => {
             print!("{}", agglo::output::schema::outputs_markdown());
@@ -216,8 +85,14 @@ fn load(path: &Path) -> anyhow::Result<Scenario> {
     Scenario::load(path).with_context(|| format!("loading scenario {}", path.display()))
 }
 
-fn validate(path: &Path) -> anyhow::Result<()> {
+fn validate(path: &Path, settings: &[String], seed: Option<u64>) -> anyhow::Result<()> {
     if is_inverse_file(path) {
+        anyhow::ensure!(
+            settings.is_empty() && seed.is_none(),
+            "{}: --set and --seed apply to scenario files; an inverse problem's base \
+             scenario is checked as it is written",
+            path.display()
+        );
         let problem = agglo::inverse::InverseProblem::load(path)
             .with_context(|| format!("loading inverse problem {}", path.display()))?;
         println!(
@@ -229,55 +104,19 @@ fn validate(path: &Path) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    let s = load(path)?;
-    println!(
-        "{}: valid — N = {}, b0 = {:.4e} m, volume fraction {:.4}, D = {:e} m, T = {:e} s, seed {}",
-        s.name,
-        s.cloud.count,
-        s.primary_radius(),
-        s.volume_fraction(),
-        s.domain.half_width,
-        s.time.end,
-        s.seed
-    );
-    let pipeline = s.pipeline().context("building the scene's pipeline")?;
-    print!("{}", pipeline_text(&pipeline));
-    if let Some(restart) = &s.output.restart {
-        let before_end = (s.time.end / restart.every).ceil() as u64 - 1;
-        println!(
-            "restart checkpoints: every {:e} s of simulated time, {before_end} before T \
-             (agglo run --resume continues from the last one)",
-            restart.every
-        );
+    let mut s = load(path)?;
+    if !settings.is_empty() {
+        s = s.with_settings(settings)?;
     }
-    let memory = agglo::memory::MemoryEstimate::of(&s);
-    println!("{}", memory.describe());
-    if let Some(warning) = memory.check().map_err(anyhow::Error::msg)? {
+    if let Some(seed) = seed {
+        s.seed = seed;
+    }
+    let report = agglo::validate::report(&s)?;
+    print!("{}", report.text);
+    if let Some(warning) = report.warning {
         eprintln!("{warning}");
     }
     Ok(())
-}
-
-/// The pipeline as `validate` prints it: the core and why, the systems in order, and
-/// why each other system is left out.
-fn pipeline_text(p: &Pipeline) -> String {
-    let mut text = format!("core: {} — {}\n", p.core, p.core_reason);
-    text += &format!("pipeline ({} systems, in order):\n", p.systems.len());
-    for (i, system) in p.systems.iter().enumerate() {
-        text += &format!("  {:>2}. {system}\n", i + 1);
-    }
-    for line in &p.forces {
-        text += &format!("{line}\n");
-    }
-    if p.left_out.is_empty() {
-        text += "left out: nothing\n";
-    } else {
-        text += "left out:\n";
-        for line in &p.left_out {
-            text += &format!("  - {line}\n");
-        }
-    }
-    text
 }
 
 /// `agglo layout`: a layout fitted to an existing recording's box.
@@ -305,9 +144,47 @@ fn is_inverse_file(path: &Path) -> bool {
 }
 
 fn run(args: RunArgs) -> anyhow::Result<()> {
-    let mut resume_from = None;
-    // The restart file resumed from (beside the recording when --resume names one).
-    let resumed_file = args.resume.as_deref().map(agglo::restart::restart_file_of);
+    let plan = run_plan(&args)?;
+    let resumed = plan.resume.as_ref().map(|r| {
+        (
+            r.file.clone(),
+            r.snapshot.time(),
+            r.snapshot.clock.step,
+            r.snapshot.bodies.len(),
+        )
+    });
+    let name = plan.scenario.name.clone();
+    let stop = StopRequest::install();
+    let mut run = Run::start(plan, stop.flag())?;
+    if let Some((file, t, step, bodies)) = resumed
+        && !args.quiet
+    {
+        println!(
+            "resuming {name} at t = {} s (step {step}, {bodies} bodies) from {}",
+            sci(t),
+            file.display()
+        );
+    }
+    let outcome = run.advance(Until::End, &mut |_| ControlFlow::Continue(()));
+    let end = run.finish(&outcome);
+    if !args.quiet {
+        print_outputs(&end, outcome.is_ok());
+        print_report(&end.summary);
+    }
+    if let Some(e) = end.output_error {
+        return Err(e.context("recording the run"));
+    }
+    let outcome = outcome.context("running the scenario");
+    match stop.describe() {
+        Some(why) => outcome.context(why),
+        None => outcome,
+    }
+}
+
+/// The plan of `agglo run`: the scenario (from a file, a recording or a restart file,
+/// with `--set` and `--seed`) and the flags over its `output` section.
+fn run_plan(args: &RunArgs) -> anyhow::Result<RunPlan> {
+    let mut resume = None;
     let mut scenario = match (&args.scenario, &args.from, &args.resume) {
         (Some(path), ..) => load(path)?,
         (None, Some(recording), _) => {
@@ -332,7 +209,11 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
             s.output.sizes = None;
             s.output.snapshots = None;
             s.output.collisions = None;
-            resume_from = Some(snapshot);
+            // The restart file resumed from (beside the recording when --resume names one).
+            resume = Some(Resume {
+                file: agglo::restart::restart_file_of(file),
+                snapshot,
+            });
             s
         }
         (None, None, None) => {
@@ -345,256 +226,73 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
     if let Some(seed) = args.seed {
         scenario.seed = seed;
     }
-    let table_paths = args.tables.paths(&scenario.output)?;
-    let summary_path = args
-        .summary
-        .clone()
-        .or_else(|| scenario.output.summary.clone().map(PathBuf::from));
-    let final_path = args
-        .final_state
-        .clone()
-        .or_else(|| scenario.output.final_state.clone().map(PathBuf::from));
+    let mut plan = RunPlan::new(scenario)?;
+    plan.tables = args.tables.paths(&plan.scenario.output)?;
+    plan.resume = resume;
+    if let Some(path) = &args.summary {
+        plan.summary = Some(path.clone());
+    }
+    if let Some(path) = &args.final_state {
+        plan.final_state = Some(path.clone());
+    }
+    if let Some(path) = &args.out {
+        plan.recording = Some(path.clone());
+    }
+    plan.restart = args.restart.clone();
+    plan.command_line = live::recorded_command_line(std::env::args());
+    plan.live = live::options(&args.live)?;
+    plan.progress = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
+    Ok(plan)
+}
 
-    let mcap_path = args
-        .out
-        .clone()
-        .or_else(|| scenario.output.mcap.clone().map(PathBuf::from));
-
-    // Before anything is allocated: does the scene fit in memory (recorded or not)?
-    if let Some(warning) = agglo::memory::MemoryEstimate::of_run(&scenario, mcap_path.is_some())
-        .check()
-        .map_err(anyhow::Error::msg)?
-    {
-        eprintln!("{warning}");
+/// What the run wrote: the recording and its layout, the checkpoints (and, when the run
+/// did not reach its end time, how to continue it).
+fn print_outputs(end: &RunEnd, finished: bool) {
+    if let Some((path, rep)) = &end.recording {
+        println!(
+            "recorded {} snapshots ({} deletions, {} events) to {} ({:.2} MB); \
+             Foxglove layout fitted to its box: {}",
+            rep.snapshots,
+            rep.deletions,
+            rep.events,
+            path.display(),
+            rep.bytes as f64 / 1e6,
+            end.layout
+                .as_deref()
+                .map_or_else(|| "none".into(), |p| p.display().to_string())
+        );
     }
-    let live = live::bind_run(&args.live)?;
-    let mut sim = table_paths
-        .simulation(&scenario)
-        .context("setting up the scene")?;
-    if let (Some(snapshot), Some(file)) = (&resume_from, &resumed_file) {
-        sim.resume(snapshot)
-            .with_context(|| format!("resuming from {}", file.display()))?;
-        if !args.quiet {
-            println!(
-                "resuming {} at t = {:e} s (step {}, {} bodies) from {}",
-                scenario.name,
-                snapshot.time(),
-                snapshot.clock.step,
-                snapshot.bodies.len(),
-                file.display()
-            );
-        }
-    }
-    let restart_file = agglo::restart::restart_path(
-        &scenario,
-        args.restart.as_deref().or(resumed_file.as_deref()),
-        mcap_path.as_deref(),
-    );
-    // Checkpoints written: count, bytes of the last, its time [s], seconds writing.
-    let mut checkpoints_written: (u64, u64, f64, f64) = (0, 0, 0.0, 0.0);
-    // For the restart tests: SIGKILL this process after the given step, at a point the
-    // test chooses exactly (an outside kill lands wherever the run happens to be).
-    let kill_after = std::env::var("AGGLO_TEST_SIGKILL_AFTER_STEP")
-        .ok()
-        .and_then(|v| v.parse::<u64>().ok());
-
-    let stop = signals::StopRequest::install();
-    let layout_path = match &mcap_path {
-        Some(path) => Some(write_layout_beside(path, &scenario)?),
-        None => None,
-    };
-    // Created after the signal handlers: once the file exists, a stop signal finalises it.
-    let mut recorder = match &mcap_path {
-        Some(path) => {
-            let command_line = live::recorded_command_line(std::env::args());
-            Some(agglo::record::Recorder::create(path, &sim, &command_line)?)
-        }
-        None => None,
-    };
-    let mut tables = agglo::output::RunTables::open(&table_paths, &scenario, &sim)?;
-    let beside = mcap_path.as_deref().or(summary_path.as_deref());
-    let mut live = live::start_run(live, &sim, &scenario, beside, &stop.flag())?;
-    let mut clamp_watch = clamping_floor(&scenario).map(|dt_min| (ClampWatch::new(0, 0), dt_min));
-    let mut record_error: Option<anyhow::Error> = None;
-    let show_progress = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stdout());
-    let mut bar = show_progress
-        .then(|| progress::Progress::new(scenario.time.end, scenario.uses_event_core()));
-    let outcome = sim.run_with(|s| {
-        if let Some(bar) = bar.as_mut() {
-            bar.update(s);
-        }
-        if let Some((watch, dt_min)) = clamp_watch.as_mut() {
-            let c = s.clock();
-            if let Some(window) = watch.observe(
-                c.step,
-                s.counters().clamped_steps,
-                std::time::Instant::now(),
-            ) {
-                let warning = clamping_warning(&scenario, *dt_min, c.time, window);
-                // Above the progress bar, which also draws on stderr.
-                match &bar {
-                    Some(bar) => bar.suspend(|| eprintln!("{warning}")),
-                    None => eprintln!("{warning}"),
-                }
-            }
-        }
-        if let Some(l) = live.as_mut() {
-            l.observe(s);
-        }
-        if let Some(r) = recorder.as_mut()
-            && let Err(e) = r.observe(s)
-        {
-            record_error = Some(e);
-            return ControlFlow::Break(());
-        }
-        if let Some(t) = tables.as_mut()
-            && let Err(e) = t.observe(s)
-        {
-            record_error = Some(e);
-            return ControlFlow::Break(());
-        }
-        if let (Some(path), Some(snapshot)) = (&restart_file, s.restart_snapshot()) {
-            let start = std::time::Instant::now();
-            match agglo::restart::write(path, &scenario, snapshot) {
-                Ok(bytes) => {
-                    let (count, _, _, seconds) = checkpoints_written;
-                    let seconds = seconds + start.elapsed().as_secs_f64();
-                    checkpoints_written = (count + 1, bytes, snapshot.time(), seconds);
-                }
-                Err(e) => {
-                    record_error = Some(e);
-                    return ControlFlow::Break(());
-                }
-            }
-        }
-        if kill_after == Some(s.clock().step) {
-            // Die as a killed job does: no handler runs, nothing is flushed.
-            // SAFETY: getpid and kill have no preconditions.
-            unsafe { libc::kill(libc::getpid(), libc::SIGKILL) };
-        }
-        if stop.requested() {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
-    });
-    if let Some(bar) = &bar {
-        bar.finish();
-    }
-
-    // Finalise the recording whatever happened (summary section written), then the rest.
-    if let Some(r) = recorder.take() {
-        let path = r.path().to_path_buf();
-        match r.finish(&sim, &outcome) {
-            Ok(rep) if !args.quiet => println!(
-                "recorded {} snapshots ({} deletions, {} events) to {} ({:.2} MB); \
-                 Foxglove layout fitted to its box: {}",
-                rep.snapshots,
-                rep.deletions,
-                rep.events,
-                path.display(),
-                rep.bytes as f64 / 1e6,
-                layout_path
-                    .as_deref()
-                    .map_or_else(|| "none".into(), |p| p.display().to_string())
-            ),
-            Ok(_) => {}
-            Err(e) => {
-                record_error.get_or_insert(e);
-            }
-        }
-    }
-    if let Some(l) = live.take() {
-        l.finish(&sim, &outcome);
-    }
-    if let Some(path) = &restart_file
-        && !args.quiet
-    {
-        let (count, bytes, t, writing) = checkpoints_written;
-        match count {
+    if let Some((path, written)) = &end.checkpoints {
+        match written.count {
             0 => println!("no checkpoint reached (restart file {})", path.display()),
-            _ => println!(
-                "{count} checkpoints written to {} (the last at t = {t:e} s, {:.2} MB; \
-                 {:.3} s taking them, {writing:.3} s writing them); \
-                 continue with `agglo run --resume {}`",
+            count => println!(
+                "{count} checkpoints written to {} (the last at t = {} s, {:.2} MB; \
+                 {:.3} s taking them, {:.3} s writing them); {}",
                 path.display(),
-                bytes as f64 / 1e6,
-                sim.checkpoint_seconds(),
-                path.display()
+                sci(written.time),
+                written.bytes as f64 / 1e6,
+                end.sim.checkpoint_seconds(),
+                written.writing_seconds,
+                if finished {
+                    "the run reached its end time: nothing to resume".to_string()
+                } else {
+                    format!("continue with `agglo run --resume {}`", path.display())
+                }
             ),
         }
     }
-    // Write what we have even when the run failed: nothing is lost. A table whose
-    // writer failed during the run fails again here: the first error is the one told.
-    if let Some(t) = tables.take()
-        && let Err(e) = t.finish(&sim)
-    {
-        record_error.get_or_insert(e);
-    }
-    let bodies = sim.bodies();
-    let summary = Summary::new(&sim, &bodies);
-    if let Some(path) = &final_path {
-        write_final_state_with(path, &bodies, &sim.carried())?;
-    }
-    if let Some(path) = &summary_path {
-        write_summary(path, &summary)?;
-    }
-    if !args.quiet {
-        print_report(&summary);
-    }
-    if let Some(e) = record_error {
-        return Err(e.context("recording the run"));
-    }
-    let outcome = outcome.context("running the scenario");
-    match stop.describe() {
-        Some(why) => outcome.context(why),
-        None => outcome,
-    }
-}
-
-/// Write the Foxglove layout fitted to the scene's box beside the recording `mcap`.
-fn write_layout_beside(mcap: &Path, scenario: &Scenario) -> anyhow::Result<PathBuf> {
-    use agglo::record::layout::{layout_path_for, write_fitted_layout};
-    let path = layout_path_for(mcap);
-    write_fitted_layout(&path, scenario.domain.half_width)?;
-    Ok(path)
-}
-
-/// Δt_min, if the scene can clamp at it: only the stepped core with adaptive steps does
-/// (the event core lands on every contact; fixed steps have no lower bound).
-fn clamping_floor(s: &Scenario) -> Option<f64> {
-    match s.time.stepping {
-        Stepping::Adaptive { dt_min, .. } if !s.uses_event_core() => Some(dt_min),
-        _ => None,
-    }
-}
-
-/// The warning printed (even under `--quiet`: it is about a run going wrong, and goes
-/// to stderr, which `--quiet` does not silence) when most steps of a window were clamped.
-fn clamping_warning(
-    s: &Scenario,
-    dt_min: f64,
-    t: f64,
-    window: clamp_watch::ClampedWindow,
-) -> String {
-    format!(
-        "warning: at t = {t:.4e} s, {} of the last {} steps were clamped at Δt_min = {dt_min:e} s \
-         although a contact was due sooner: contacts are resolved late, and the run advances \
-         about Δt_min per step (T/Δt_min = {:.1e} steps, time.max_steps = {}); \
-         lower time.stepping.adaptive.dt_min",
-        window.clamped,
-        window.steps,
-        s.time.end / dt_min,
-        s.time.max_steps
-    )
 }
 
 fn print_report(s: &Summary) {
     let g = &s.growth;
     let c = &s.counters;
     println!(
-        "{} (seed {}): t = {:.4e} s in {} steps, {:.3} s wall",
-        s.scenario, s.seed, s.time, s.steps, s.wall_seconds
+        "{} (seed {}): t = {} s in {} steps, {:.3} s wall",
+        s.scenario,
+        s.seed,
+        sci(s.time),
+        s.steps,
+        s.wall_seconds
     );
     println!(
         "  bodies {} → {}, b_f/b0 = {:.4}, n_f = {:.3}, Π04 = {:.4}, Π02 = {:.4e}",

@@ -25,6 +25,7 @@
 //! All quantities are SI and `f64`.
 
 pub mod charts;
+pub mod cli_args;
 pub mod cloud_file;
 pub mod farm;
 pub mod huge_pages;
@@ -35,13 +36,15 @@ pub mod memory;
 pub mod output;
 pub mod record;
 pub mod restart;
+pub mod run;
 pub mod scenario;
 pub mod study;
+pub mod validate;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{
-    bodies, carried, cloud, components, error, hooks, laws, observables, params, resources, scene,
-    schedule, setup, totals,
+    bodies, carried, cloud, components, error, hooks, laws, observables, params, readable,
+    resources, scene, schedule, setup, totals,
 };
 /// The built-in physics plugins (the `agglo-systems` crate).
 pub use agglo_systems as systems;
