@@ -316,7 +316,7 @@ GRID is one of
 Every body must lie inside the grid, at the start and throughout (else the run stops,
 naming the body). Rates follow K n_i n_j (i != j) and 1/2 K n_i^2 (i = j); K = counts/exposure.
 Example:
-  agglo kernel scenarios/ballistic_aggregation.json --bins dustpy:4e-12,1e-8,7 \\
+  agglo kernel scenarios/ballistic_aggregation.json --bins dustpy:1e-5,1,7 \\
       --seeds 8 --window 0:0.05 --units cgs --out kernel.npz --parquet kernel.parquet")]
 pub struct KernelArgs {
     /// Scenario file (JSON).

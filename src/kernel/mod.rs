@@ -16,7 +16,7 @@
 //! use agglo::kernel::{self, Accumulator, Estimate, MassGrid, Sampling, Window};
 //! use agglo::prelude::*;
 //! let scenario = Scenario::load(std::path::Path::new("scenarios/ballistic_aggregation.json"))?;
-//! let grid = MassGrid::parse("dustpy:1e-9,1e-5,7", scenario.material.rho)?;
+//! let grid = MassGrid::parse("dustpy:1e-5,1,7", scenario.material.rho)?;
 //! let acc = kernel::measure(&scenario, &grid, Window::default(), Sampling::default(),
 //!     &kernel::seeds(&scenario, 4), &agglo::farm::Workers::local(0), |_| {})?;
 //! let k = Estimate::of(&acc);
