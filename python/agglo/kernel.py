@@ -29,7 +29,28 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["KernelFile", "load", "dustpy_arrays", "openfoam_table", "write_openfoam_table"]
+__all__ = ["KernelFile", "load", "measure", "dustpy_arrays", "openfoam_table", "write_openfoam_table"]
+
+
+def measure(scenario, bins: str, out, *, seeds: int = 8, threads: int = 0, window=None,
+            units: str = "si", parquet=None, load_units: str = "cgs") -> "KernelFile":
+    """Measure the kernel of ``scenario`` (an ``agglo.Scenario``) as ``agglo kernel`` does,
+    with the same library calls: ``seeds`` runs (the scenario's seed, then the next ones)
+    on ``threads`` Rust threads (0: one per core), binned on ``bins`` (``edges:m0,m1,…``
+    [kg], ``dustpy:mmin,mmax,per_decade`` [g] or ``openfoam:d0,d1,…`` [m]) within
+    ``window`` = (t0, t1) [s]; writes ``out`` (.npz, in ``units``: "si" or "cgs") and the
+    long table ``parquet`` if given, and returns the file loaded (in ``load_units``).
+    Needs the compiled package (the rest of this module does not)."""
+    from . import _agglo
+
+    if units not in ("si", "cgs"):
+        raise ValueError(f"measure: units: 'si' or 'cgs' (got {units!r})")
+    t0, t1 = (0.0, float("inf")) if window is None else (float(window[0]), float(window[1]))
+    _agglo.measure_kernel(
+        scenario._inner, bins, str(out), int(seeds), int(threads), (t0, t1), units == "cgs",
+        None if parquet is None else str(parquet),
+    )
+    return load(out, units=load_units)
 
 #: Factor from SI to cgs by unit, for the arrays of an SI file.
 _TO_CGS = {

@@ -11,6 +11,7 @@ mod columns;
 mod ensemble;
 mod errors;
 mod hooks;
+mod kernel;
 mod scenario;
 mod simulation;
 
@@ -32,5 +33,6 @@ fn _agglo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<simulation::Simulation>()?;
     m.add_function(wrap_pyfunction!(ensemble::ensemble, m)?)?;
     m.add_function(wrap_pyfunction!(columns::table_units, m)?)?;
+    m.add_function(wrap_pyfunction!(kernel::measure_kernel, m)?)?;
     Ok(())
 }

@@ -309,3 +309,23 @@ def test_carried_quantities_follow_merges_and_fragments_in_rust(scenarios):
         agglo.Simulation(s, carry={"q": agglo.Carry(combine="avg")})
     with pytest.raises(agglo.AggloError, match="one value or one per body"):
         agglo.Simulation(s, carry={"q": agglo.Carry(init=[1.0, 2.0])})
+
+
+def test_the_kernel_from_python_is_agglo_kernels_file(scenarios, agglo_bin, tmp_path):
+    import agglo.kernel
+
+    path = scenarios / "ballistic_aggregation.json"
+    s = agglo.Scenario.load(path).set({"cloud.count": 500, "time.end": 2e-3})
+    k = agglo.kernel.measure(s, "dustpy:1e-4,1e-1,7", tmp_path / "py.npz", seeds=3, threads=2)
+    subprocess.run([str(agglo_bin), "kernel", str(path), "--set", "cloud.count=500", "--set",
+                    "time.end=2e-3", "--bins", "dustpy:1e-4,1e-1,7", "--seeds", "3", "-q",
+                    "--out", str(tmp_path / "cli.npz")], check=True)
+    a, b = np.load(tmp_path / "py.npz"), np.load(tmp_path / "cli.npz")
+    assert sorted(a.files) == sorted(b.files)
+    for name in a.files:
+        if name == "provenance" or a[name].dtype.kind in "US":
+            continue
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    assert k.units == "cgs"
+    with pytest.raises(agglo.ScenarioError, match="bins"):
+        agglo.kernel.measure(s, "edges:3,2,1", tmp_path / "bad.npz")
