@@ -98,6 +98,118 @@ pub struct BodyState {
     pub primaries: f64,
 }
 
+/// Every body's state as columns, one vector per field of [`BodyState`]
+/// ([`crate::schedule::Simulation::body_columns`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BodyColumns {
+    pub id: Vec<u64>,
+    /// Position and velocity components [m], [m/s].
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    pub z: Vec<f64>,
+    pub vx: Vec<f64>,
+    pub vy: Vec<f64>,
+    pub vz: Vec<f64>,
+    /// [kg], [m], [K], [Pa], primaries.
+    pub mass: Vec<f64>,
+    pub radius: Vec<f64>,
+    pub temperature: Vec<f64>,
+    pub hardness: Vec<f64>,
+    pub primaries: Vec<f64>,
+}
+
+impl BodyColumns {
+    /// Empty columns with room for `n` bodies.
+    pub fn with_capacity(n: usize) -> Self {
+        let f = || Vec::with_capacity(n);
+        Self {
+            id: Vec::with_capacity(n),
+            x: f(),
+            y: f(),
+            z: f(),
+            vx: f(),
+            vy: f(),
+            vz: f(),
+            mass: f(),
+            radius: f(),
+            temperature: f(),
+            hardness: f(),
+            primaries: f(),
+        }
+    }
+
+    /// Append one body.
+    pub fn push(&mut self, b: &BodyState) {
+        self.id.push(b.id);
+        self.x.push(b.position.x);
+        self.y.push(b.position.y);
+        self.z.push(b.position.z);
+        self.vx.push(b.velocity.x);
+        self.vy.push(b.velocity.y);
+        self.vz.push(b.velocity.z);
+        self.mass.push(b.mass);
+        self.radius.push(b.radius);
+        self.temperature.push(b.temperature);
+        self.hardness.push(b.hardness);
+        self.primaries.push(b.primaries);
+    }
+
+    /// Bodies in the columns.
+    pub fn len(&self) -> usize {
+        self.id.len()
+    }
+
+    /// True when there are none.
+    pub fn is_empty(&self) -> bool {
+        self.id.is_empty()
+    }
+
+    /// The float columns with their names, in the `--final-state` order.
+    pub fn floats(self) -> [(&'static str, Vec<f64>); 11] {
+        [
+            ("x", self.x),
+            ("y", self.y),
+            ("z", self.z),
+            ("vx", self.vx),
+            ("vy", self.vy),
+            ("vz", self.vz),
+            ("mass", self.mass),
+            ("radius", self.radius),
+            ("temperature", self.temperature),
+            ("hardness", self.hardness),
+            ("primaries", self.primaries),
+        ]
+    }
+
+    /// Put the rows in id order (ids are unique): nothing to do when they already are.
+    pub fn sort_by_id(&mut self) {
+        if self.id.is_sorted() {
+            return;
+        }
+        let mut order: Vec<u32> = (0..self.id.len() as u32).collect();
+        order.sort_unstable_by_key(|&i| self.id[i as usize]);
+        fn gather<T: Copy>(v: &mut Vec<T>, order: &[u32]) {
+            *v = order.iter().map(|&i| v[i as usize]).collect();
+        }
+        gather(&mut self.id, &order);
+        for v in [
+            &mut self.x,
+            &mut self.y,
+            &mut self.z,
+            &mut self.vx,
+            &mut self.vy,
+            &mut self.vz,
+            &mut self.mass,
+            &mut self.radius,
+            &mut self.temperature,
+            &mut self.hardness,
+            &mut self.primaries,
+        ] {
+            gather(v, &order);
+        }
+    }
+}
+
 /// A body's components, as a query reads them.
 pub type BodyComponents<'a> = (
     &'a ParticleId,

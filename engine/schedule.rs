@@ -997,6 +997,35 @@ impl Simulation {
         .with_field(self.world.get_resource::<Field>())
     }
 
+    /// Every body as columns (the fields of [`BodyState`]), sorted by stable id: what
+    /// [`Simulation::bodies`] reads, laid out for a front end that hands columns on
+    /// (the Python module's NumPy arrays) without transposing rows. The bodies are read
+    /// in the world's order, which is usually already by id; otherwise the columns are
+    /// put in id order through one permutation.
+    pub fn body_columns(&self) -> crate::components::BodyColumns {
+        use crate::components::BodyColumns;
+        let Some(mut query) = self
+            .world
+            .try_query_filtered::<StoredBody, With<Particle>>()
+        else {
+            return BodyColumns::default();
+        };
+        let lazy = self.world.resource::<LazyState>().0;
+        let now = self.clock().time;
+        let clockwork = self.clockwork();
+        let mut c = BodyColumns::with_capacity(self.body_count());
+        for (id, p, v, m, b, t, h, n, lt) in query.iter(&self.world) {
+            let state = BodyState::from((id, p, v, m, b, t, h, n));
+            c.push(&if lazy {
+                state_at(&state, lt.0, now, &clockwork)
+            } else {
+                state
+            });
+        }
+        c.sort_by_id();
+        c
+    }
+
     /// Every body, sorted by stable id (from a shared reference, so observers of
     /// [`Simulation::run_with`] can read it).
     pub fn bodies(&self) -> Vec<BodyState> {

@@ -233,12 +233,11 @@ fn call(py: Python<'_>, hook: &Hook, b: Batch, sim: &Simulation) -> PyResult<()>
             d.set_item("children", children)?;
         }
         Kind::Sample => {
-            let bodies = sim.bodies();
             let carried = sim.carried();
             d.set_item("t", sim.clock().time)?;
             d.set_item(
                 "bodies",
-                crate::columns::bodies_columns(py, &bodies, &carried)?,
+                crate::columns::bodies_columns(py, sim.body_columns(), &carried)?,
             )?;
         }
     }

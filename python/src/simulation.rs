@@ -656,8 +656,8 @@ impl Simulation {
         guard(|| {
             let inner = self.lock()?;
             let sim = inner.sim();
-            let (bodies, carried) = py.detach(|| (sim.bodies(), sim.carried()));
-            crate::columns::bodies_columns(py, &bodies, &carried)
+            let (bodies, carried) = py.detach(|| (sim.body_columns(), sim.carried()));
+            crate::columns::bodies_columns(py, bodies, &carried)
         })
     }
 

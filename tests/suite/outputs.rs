@@ -557,3 +557,30 @@ fn collision_log_marks_impacts_whose_bodies_fragmented() {
     assert_eq!(bounces + bonds + fragments, c.impacts);
     assert!(bounces <= c.bounces && bonds <= c.bonds);
 }
+
+/// `Simulation::body_columns` (the Python module's bodies) holds what `bodies()` reads,
+/// field by field, in id order — after merges and fragments have reordered the world.
+#[test]
+fn body_columns_are_the_bodies_as_columns() {
+    for core in ["events", "stepped"] {
+        let text = std::fs::read_to_string("scenarios/quick_demo.json").unwrap();
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        crate::common::merge(&mut v, serde_json::json!({ "time": { "core": core } }));
+        let s = agglo::prelude::Scenario::from_value(v).unwrap();
+        let mut sim = agglo::prelude::Simulation::new(&s).unwrap();
+        for _ in 0..300 {
+            sim.step().unwrap();
+        }
+        assert!(
+            sim.counters().fragmentations > 0 && sim.counters().bonds > 0,
+            "{core}"
+        );
+        let rows = sim.bodies();
+        let columns = sim.body_columns();
+        let mut from_rows = agglo::components::BodyColumns::with_capacity(rows.len());
+        for b in &rows {
+            from_rows.push(b);
+        }
+        assert_eq!(columns, from_rows, "{core}");
+    }
+}
