@@ -325,6 +325,16 @@ pub fn placed_bodies(
                 ),
             ));
         }
+        if radius >= d {
+            return Err(invalid(
+                i,
+                "radius",
+                format!(
+                    "{radius:e} m: the body is larger than the box (it would touch its own \
+                     periodic image); allowed radius < D = {d:e} m"
+                ),
+            ));
+        }
         let theta = p.temperature.unwrap_or(material.theta0);
         bodies.push(BodyState {
             id: p.id.unwrap_or(i as u64),

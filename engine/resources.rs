@@ -300,14 +300,52 @@ impl SimRng {
     }
 }
 
-/// Next unused stable id.
+/// Stable ids for new bodies (fragments): taken in order from `next` up to `end`, a range
+/// no body of the initial cloud holds. Ids are labels (any u64, docs/model.md §2): past
+/// the largest given id when there is room there (0, 1, … N − 1 gives N, N + 1, …),
+/// else from the widest gap between the given ids, so a fragment's id never repeats a
+/// body's.
 #[derive(Resource, Debug, Clone, Copy, PartialEq, Eq)]
 pub struct IdAllocator {
     pub next: u64,
+    /// One past the last id that may be handed out.
+    pub end: u64,
 }
 
 impl IdAllocator {
+    /// The allocator for a cloud holding `ids` (any order, distinct).
+    pub fn after(ids: impl Iterator<Item = u64>) -> Self {
+        let mut ids: Vec<u64> = ids.collect();
+        match ids.iter().max() {
+            None => Self {
+                next: 0,
+                end: u64::MAX,
+            },
+            Some(&max) if max < u64::MAX => Self {
+                next: max + 1,
+                end: u64::MAX,
+            },
+            Some(_) => {
+                // The widest run of free ids: below the smallest, or between two.
+                ids.sort_unstable();
+                let mut best = (0, ids[0]);
+                for w in ids.windows(2) {
+                    if w[1] - w[0] - 1 > best.1 - best.0 {
+                        best = (w[0] + 1, w[1]);
+                    }
+                }
+                Self {
+                    next: best.0,
+                    end: best.1,
+                }
+            }
+        }
+    }
+
     pub fn allocate(&mut self) -> u64 {
+        // The range holds at least 2^64 / N ids: beyond any number of fragments a run
+        // can make.
+        assert!(self.next < self.end, "stable ids exhausted");
         let id = self.next;
         self.next += 1;
         id

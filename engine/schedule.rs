@@ -219,7 +219,7 @@ impl SimBuilder {
             initial_bodies: cloud.len(),
         };
         // Past every id given (explicit bodies may bring their own, e.g. a run's end state).
-        let next_id = cloud.iter().map(|b| b.id + 1).max().unwrap_or(0);
+        let ids = IdAllocator::after(cloud.iter().map(|b| b.id));
         let initial = totals(
             cloud.iter().map(|b| (b.mass, b.velocity, b.temperature)),
             material.C,
@@ -246,7 +246,7 @@ impl SimBuilder {
         scene.insert_settings(&mut world);
         world.init_resource::<SimClock>();
         world.insert_resource(rng);
-        world.insert_resource(IdAllocator { next: next_id });
+        world.insert_resource(ids);
         world.insert_resource(InvariantReport {
             initial_mass: initial.mass,
             initial_momentum: initial.momentum.to_array(),
