@@ -400,3 +400,196 @@ fn inspect_of_a_killed_recording_says_what_is_readable_and_how_to_resume() {
         );
     }
 }
+
+/// Parquet written with Snappy, pandas' and pyarrow's default codec, was refused
+/// ("Disabled feature at compile time: snap").
+#[test]
+fn from_file_reads_snappy_parquet() {
+    use parquet::basic::Compression;
+    use parquet::data_type::DoubleType;
+    use parquet::file::properties::WriterProperties;
+    use parquet::file::writer::SerializedFileWriter;
+    use std::sync::Arc;
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("b.parquet");
+    let schema = Arc::new(
+        parquet::schema::parser::parse_message_type(
+            "message b { REQUIRED DOUBLE x; REQUIRED DOUBLE y; REQUIRED DOUBLE z; }",
+        )
+        .unwrap(),
+    );
+    let props = WriterProperties::builder()
+        .set_compression(Compression::SNAPPY)
+        .build();
+    let mut writer = SerializedFileWriter::new(
+        std::fs::File::create(&path).unwrap(),
+        schema,
+        Arc::new(props),
+    )
+    .unwrap();
+    let mut group = writer.next_row_group().unwrap();
+    for values in [[-0.003, 0.003], [0.0, 0.0], [0.0, 0.0]] {
+        let mut column = group.next_column().unwrap().unwrap();
+        column
+            .typed::<DoubleType>()
+            .write_batch(&values, None, None)
+            .unwrap();
+        column.close().unwrap();
+    }
+    group.close().unwrap();
+    writer.close().unwrap();
+    let bodies = agglo::cloud_file::load_bodies(&path).unwrap();
+    assert_eq!(bodies.len(), 2);
+    assert_eq!(bodies[1].position, [0.003, 0.0, 0.0]);
+}
+
+/// A CSV table whose writer was killed mid-row ends in a torn line: it is left out on
+/// read (the rows before it are whole), instead of failing the whole file.
+#[test]
+fn a_torn_last_csv_line_is_left_out() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("b.csv"),
+        "x,y,z,temperature\n-0.003,0,0,300\n0.003,0,0,300\n0.0,0.00",
+    )
+    .unwrap();
+    let bodies = agglo::cloud_file::load_bodies(&dir.path().join("b.csv")).unwrap();
+    assert_eq!(bodies.len(), 2);
+    // A file written by hand without a last newline keeps its last (whole) row.
+    std::fs::write(dir.path().join("c.csv"), "x,y,z\n-0.003,0,0\n0.003,0,0").unwrap();
+    assert_eq!(
+        agglo::cloud_file::load_bodies(&dir.path().join("c.csv"))
+            .unwrap()
+            .len(),
+        2
+    );
+}
+
+/// A restart file altered by hand and its checksum recomputed: a snapshot that does not
+/// describe a run of its scene (a NaN position, an infinite clock, a repeated id, a
+/// checkpoint interval of 1e-300 s) is refused on resume, naming what is wrong, instead
+/// of hanging or panicking.
+#[test]
+fn a_restart_snapshot_altered_with_its_checksum_recomputed_is_refused() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_corpus/run.restart");
+    let (scenario, snapshot) = agglo::restart::read(&path).unwrap();
+    type Alter = fn(&mut agglo::restart::RestartSnapshot);
+    let cases: [(Alter, &str); 4] = [
+        (|s| s.bodies[1].position[0] = f64::NAN, "position"),
+        (|s| s.clock.time = f64::INFINITY, "clock.time"),
+        (|s| s.bodies[1].id = s.bodies[0].id, "two bodies"),
+        (|s| s.checkpoints.every = 1e-300, "checkpoints"),
+    ];
+    for (alter, words) in cases {
+        let mut altered = snapshot.clone();
+        alter(&mut altered);
+        let bytes = agglo::restart::encode(&scenario, &altered);
+        let (scenario, altered) = agglo::restart::decode(&path, &bytes).unwrap();
+        let mut sim = Simulation::new(&scenario).unwrap();
+        let err = sim.resume(&altered).unwrap_err().to_string();
+        assert!(err.contains(words), "{words}: {err}");
+    }
+    // The file as written resumes.
+    let mut sim = Simulation::new(&scenario).unwrap();
+    sim.resume(&snapshot).unwrap();
+}
+
+fn inverse_error(patch: Value) -> String {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+    let mut v: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("inverse_demo.json")).unwrap())
+            .unwrap();
+    merge(&mut v, patch);
+    match agglo::inverse::InverseProblem::from_json(&v.to_string(), &dir) {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// Genes whose values the run overwrites (the scene seed, a path set twice, time.end
+/// under the P02 end-time rule) are refused: best.json reported values never applied.
+#[test]
+fn inverse_genes_the_run_would_overwrite_are_refused() {
+    let gene = |path: &str| json!({ "name": "g", "path": path, "min": 1, "max": 2 });
+    for (genes, words) in [
+        (json!([gene("seed")]), "`seed`"),
+        (
+            json!([gene("cloud.v_rel.0"), gene("cloud.v_rel.0")]),
+            "already set by genes.0.path",
+        ),
+        (
+            json!([{ "name": "T", "path": "time.end", "min": 1e-4, "max": 2e-4 }]),
+            "P02 end-time rule",
+        ),
+    ] {
+        let message = inverse_error(json!({ "genes": genes }));
+        assert!(message.contains(words), "{genes}: {message}");
+    }
+}
+
+/// a0 and af gene ranges that can cross (a0 at its upper bound above af at its lower)
+/// are refused by validation; `optimize` failed in generation 0.
+#[test]
+fn crossing_a0_and_af_gene_ranges_are_refused() {
+    let message = inverse_error(json!({ "genes": [
+        { "name": "a0", "path": "impact.a0", "min": 0.1, "max": 0.6 },
+        { "name": "af", "path": "impact.af", "min": 0.5, "max": 1.0 }
+    ] }));
+    assert!(
+        message.contains("a0 = 0.6") && message.contains("af = 0.5"),
+        "{message}"
+    );
+}
+
+/// A penalty ≤ 0 let failed strings win (costs are ≥ 0 and minimised).
+#[test]
+fn a_failure_penalty_of_zero_or_less_is_refused() {
+    for p in [0.0, -1.0] {
+        let message = inverse_error(json!({ "on_failure": { "penalty": p } }));
+        assert!(
+            message.contains("on_failure.penalty") && message.contains("> 0"),
+            "{message}"
+        );
+    }
+}
+
+/// `ga.strings = 1e12` and `scan --points 1e11` aborted on an allocation; `validate`
+/// called the problem valid. Now both get the memory check `run` applies.
+#[test]
+fn populations_and_scans_larger_than_memory_are_refused() {
+    let message = inverse_error(json!({ "ga": { "strings": 1_000_000_000_000u64, "parents": 4 } }));
+    assert!(
+        message.contains("ga.strings") && message.contains("memory"),
+        "{message}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let problem = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/inverse_demo.json");
+    let out = agglo_within(&["validate", problem.to_str().unwrap()], dir.path(), LIMIT);
+    assert!(out.ok(), "{}", out.stderr);
+    let out = agglo_within(
+        &[
+            "scan",
+            problem.to_str().unwrap(),
+            "--gene",
+            "cloud.v_rel.0",
+            "--from",
+            "1",
+            "--to",
+            "2",
+            "--points",
+            "100000000000",
+            "--out",
+            "scan.csv",
+            "-q",
+        ],
+        dir.path(),
+        LIMIT,
+    );
+    assert!(out.refused(), "{:?} {}", out.status, out.stderr);
+    assert!(
+        out.stderr.contains("--points") && out.stderr.contains("memory"),
+        "{}",
+        out.stderr
+    );
+}
