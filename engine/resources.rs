@@ -154,6 +154,27 @@ pub struct EnergyLedger {
     pub double_counted_heat: f64,
 }
 
+/// The first non-finite body state the checks met (stage 9), which ends the run with
+/// [`crate::error::SimError::NonFinite`] at the end of the step: the step it was seen at
+/// and what (the body's id, the quantity and its value). Not part of a restart
+/// snapshot: a run stops at the first.
+#[derive(Resource, Debug, Clone, PartialEq, Default)]
+pub struct NonFiniteState {
+    pub first: Option<(u64, String)>,
+}
+
+impl NonFiniteState {
+    /// Note a body's state if any quantity is NaN or infinite (the first one only).
+    pub fn check_body(&mut self, step: u64, id: u64, quantities: [(&str, f64); 9]) {
+        if self.first.is_some() {
+            return;
+        }
+        if let Some((what, x)) = quantities.iter().find(|(_, x)| !x.is_finite()) {
+            self.first = Some((step, format!("body {id}: {what} = {x}")));
+        }
+    }
+}
+
 /// Reference totals at t = 0 and the worst invariant errors seen.
 #[derive(Resource, Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct InvariantReport {

@@ -255,6 +255,7 @@ impl SimBuilder {
             ..Default::default()
         });
         world.init_resource::<Counters>();
+        world.init_resource::<crate::resources::NonFiniteState>();
         world.init_resource::<EnergyLedger>();
         world.init_resource::<ContactList>();
         world.init_resource::<ImpactRecords>();
@@ -827,6 +828,16 @@ impl Simulation {
             rotate(&mut self.world);
         }
         self.schedule.run(&mut self.world);
+        // A NaN or infinite body state seen by the checks (stage 9) ends the run here,
+        // naming the body, the quantity and the step (it once ran on to T, exit 0).
+        if let Some((step, what)) = self
+            .world
+            .resource::<crate::resources::NonFiniteState>()
+            .first
+            .clone()
+        {
+            return Err(SimError::NonFinite { step, what });
+        }
         // bevy_ecs keeps a message per component of every despawned body until trackers
         // are cleared (for `RemovedComponents` readers; the engine has none): left alone,
         // a merging 1e6 cloud held 168 MB of them at its end.

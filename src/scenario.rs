@@ -570,6 +570,36 @@ impl Scenario {
                 ),
             });
         }
+        // Under drag, every body from a primary to the whole cloud merged into one needs
+        // a relaxation time τ that is positive and finite, with a finite terminal
+        // velocity u + g τ: an Epstein gas of density 1e-320 gave τ = ∞ and every
+        // position NaN.
+        if let Some(drag) = self.field.drag
+            && v.issues.is_empty()
+        {
+            let field = match drag.relaxation {
+                Relaxation::Constant { .. } => "field.drag.relaxation.constant.tau",
+                Relaxation::Stokes { .. } => "field.drag.relaxation.stokes.viscosity",
+                Relaxation::Epstein { .. } => "field.drag.relaxation.epstein.gas_density",
+            };
+            let radius_of = |mass: f64| b0 * (mass / m0).cbrt();
+            for mass in [m0, total] {
+                let tau = self.field.relaxation_time(mass, radius_of(mass));
+                let terminal = glam::DVec3::from_array(drag.gas_velocity) + self.field.g() * tau;
+                if !(tau.is_finite() && tau.is_normal() && terminal.is_finite()) {
+                    v.issues.push(ValidationIssue {
+                        path: field.into(),
+                        message: format!(
+                            "gives a body of {mass:e} kg the relaxation time τ = {tau:e} s \
+                             (terminal velocity {terminal}); allowed values giving a finite \
+                             τ > 0 and a finite terminal velocity for every body from a \
+                             primary to the whole cloud"
+                        ),
+                    });
+                    break;
+                }
+            }
+        }
         let m = &self.material;
         for (path, theta) in [
             ("material.theta0", m.theta0),
