@@ -611,6 +611,7 @@ impl SimBuilder {
             rotations: self.subscriptions.into_iter().map(|(_, f)| f).collect(),
             checkpoint: None,
             checkpoint_seconds: 0.0,
+            completed: false,
         })
     }
 }
@@ -741,6 +742,8 @@ pub struct Simulation {
     checkpoint: Option<crate::restart::RestartSnapshot>,
     /// Wall-clock seconds spent taking checkpoints (part of `wall_seconds`).
     checkpoint_seconds: f64,
+    /// True once the run reached T and was completed (see [`Simulation::run_until`]).
+    completed: bool,
 }
 
 impl Simulation {
@@ -888,6 +891,7 @@ impl Simulation {
     pub fn resume(&mut self, snapshot: &crate::restart::RestartSnapshot) -> Result<(), SimError> {
         crate::restart::restore(&mut self.world, snapshot).map_err(SimError::Schedule)?;
         self.checkpoint = None;
+        self.completed = false;
         Ok(())
     }
 
@@ -899,9 +903,25 @@ impl Simulation {
     /// Run to T, calling `observe` after every step; `Break` stops early with [`SimError::Interrupted`].
     pub fn run_with(
         &mut self,
+        observe: impl FnMut(&Simulation) -> ControlFlow<()>,
+    ) -> Result<(), SimError> {
+        self.run_until(|_| false, observe)
+    }
+
+    /// Step until `done` holds (asked before each step) or T is reached, calling
+    /// `observe` after every step; `Break` stops early with [`SimError::Interrupted`],
+    /// leaving a valid simulation that a later call continues bit for bit. At T the run
+    /// is completed once (the last force interval's kick, every body brought to T);
+    /// calling again after that does nothing.
+    pub fn run_until(
+        &mut self,
+        mut done: impl FnMut(&Simulation) -> bool,
         mut observe: impl FnMut(&Simulation) -> ControlFlow<()>,
     ) -> Result<(), SimError> {
         while !self.is_finished() {
+            if done(self) {
+                return Ok(());
+            }
             self.step()?;
             if observe(self).is_break() {
                 let c = self.clock();
@@ -911,11 +931,14 @@ impl Simulation {
                 });
             }
         }
-        if self.has_forces {
-            // The last interval's kick (forces act at the end of each interval).
-            kick(&mut self.world, true);
+        if !self.completed {
+            self.completed = true;
+            if self.has_forces {
+                // The last interval's kick (forces act at the end of each interval).
+                kick(&mut self.world, true);
+            }
+            self.bring_all_to_now();
         }
-        self.bring_all_to_now();
         Ok(())
     }
 

@@ -34,8 +34,10 @@ pub mod memory;
 pub mod output;
 pub mod record;
 pub mod restart;
+pub mod run;
 pub mod scenario;
 pub mod study;
+pub mod validate;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{

@@ -75,7 +75,7 @@ fn load(path: &Path) -> anyhow::Result<InverseProblem> {
 /// The flag a stop signal (SIGINT, SIGTERM, SIGHUP) sets: the batch then stops starting
 /// samples and the checkpoint of the last finished generation stays the one to resume.
 fn interrupt_flag() -> Arc<AtomicBool> {
-    super::signals::StopRequest::install().flag()
+    agglo::run::signals::StopRequest::install().flag()
 }
 
 pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result<()> {

@@ -1,5 +1,5 @@
 //! `--live` on `agglo run` and `agglo optimize`: the flags, and thin glue over
-//! [`agglo::live`] (bind before the work starts, print the link, write the layout).
+//! [`agglo::live`] and [`agglo::run`] (the run's live server is started by the library).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -7,9 +7,7 @@ use std::sync::atomic::AtomicBool;
 use anyhow::Context;
 
 use agglo::live::inverse::LiveInverse;
-use agglo::live::run::LiveRun;
 use agglo::live::{DEFAULT_ADDR, LiveOptions, Server, check_options, parse_addr};
-use agglo::prelude::*;
 
 /// The live flags of `agglo run`.
 #[derive(clap::Args, Debug, Clone)]
@@ -76,9 +74,8 @@ pub fn recorded_command_line(args: impl IntoIterator<Item = String>) -> String {
     kept.join(" ")
 }
 
-/// Bind the live server of `agglo run`, if asked: before the scene is built, so that a
-/// bad address is refused before any work.
-pub fn bind_run(args: &LiveArgs) -> anyhow::Result<Option<(Server, LiveOptions)>> {
+/// The live options of `agglo run`, if asked (checked before the scene is built).
+pub fn options(args: &LiveArgs) -> anyhow::Result<Option<LiveOptions>> {
     let Some(text) = &args.live else {
         return Ok(None);
     };
@@ -89,30 +86,7 @@ pub fn bind_run(args: &LiveArgs) -> anyhow::Result<Option<(Server, LiveOptions)>
         max_bodies: args.live_bodies,
     };
     check_options(&options)?;
-    let server = Server::bind(options.addr, "agglo run", agglo::live::run::topics()?)?;
-    Ok(Some((server, options)))
-}
-
-/// Start serving `sim` (bound by [`bind_run`]): print the address and the link, write the
-/// fitted layout (beside `beside`, a recording or summary, else in the temporary
-/// directory), wait for a client with `--live-wait`.
-pub fn start_run(
-    bound: Option<(Server, LiveOptions)>,
-    sim: &Simulation,
-    scenario: &Scenario,
-    beside: Option<&Path>,
-    stop: &AtomicBool,
-) -> anyhow::Result<Option<LiveRun>> {
-    let Some((server, options)) = bound else {
-        return Ok(None);
-    };
-    let layout = match beside {
-        Some(p) => agglo::record::layout::layout_path_for(p),
-        None => std::env::temp_dir().join(format!("agglo-live-{}.layout.json", scenario.name)),
-    };
-    agglo::record::layout::write_fitted_layout(&layout, scenario.domain.half_width)?;
-    announce(&server, &layout);
-    Ok(Some(LiveRun::start(server, &options, sim, stop)?))
+    Ok(Some(options))
 }
 
 /// Bind and start the live server of `agglo optimize`, if asked; the layout goes to
@@ -133,23 +107,13 @@ pub fn start_inverse(
     let text = serde_json::to_string_pretty(&agglo::live::inverse::layout(problem))?;
     std::fs::write(&layout, text + "\n")
         .with_context(|| format!("writing Foxglove layout {}", layout.display()))?;
-    announce(&server, &layout);
+    agglo::run::announce_live(&server, &layout);
     Ok(Some(LiveInverse::start(
         server,
         problem,
         args.live_wait,
         stop,
     )?))
-}
-
-fn announce(server: &Server, layout: &Path) {
-    eprintln!(
-        "live: serving on {} — in Foxglove open a Foxglove WebSocket connection to it ({}); \
-         layout: {}",
-        server.url(),
-        server.app_link(),
-        layout.display()
-    );
 }
 
 #[cfg(test)]

@@ -46,13 +46,22 @@ impl TablePaths {
     /// The scenario's simulation with the built-in physics, collecting what these tables
     /// read (the impacts, for `collisions`).
     pub fn simulation(&self, scenario: &Scenario) -> Result<Simulation, crate::error::SimError> {
+        self.builder(scenario)?.build()
+    }
+
+    /// The builder of [`TablePaths::simulation`], for a caller that adds to the scene
+    /// before it is built.
+    pub fn builder(
+        &self,
+        scenario: &Scenario,
+    ) -> Result<crate::schedule::SimBuilder, crate::error::SimError> {
         use agglo_systems::AddDefaultPlugins;
         let mut builder = Simulation::builder(scenario)?;
         builder.add_default_plugins();
         if self.collisions.is_some() {
             collisions::subscribe(&mut builder);
         }
-        builder.build()
+        Ok(builder)
     }
 }
 

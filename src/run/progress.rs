@@ -9,7 +9,7 @@
 
 use std::time::{Duration, Instant};
 
-use agglo::schedule::Simulation;
+use crate::schedule::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// Least wall time between two redraws.

@@ -1,0 +1,508 @@
+//! `agglo.Simulation`'s compiled core: one run of a scenario, through `agglo::run` (the
+//! code `agglo run` calls), advanced with the GIL released.
+//!
+//! A simulation is built when it is made (so a scene that cannot be built fails at
+//! once). Its outputs — tables, recording, summary and final-state files, the live view —
+//! are chosen before the first step (the t = 0 sample is part of them); choosing them
+//! then rebuilds the run, which is deterministic, so nothing changes. Once T is reached
+//! every output is finalised, as `agglo run` does at its end.
+//!
+//! Ctrl-C: while stepping, the Python signal handlers are run every
+//! [`SIGNAL_CHECK`] of wall time at a step boundary (the GIL taken back for that
+//! instant); a `KeyboardInterrupt` stops the run there, leaving it valid: `run()`
+//! continues it to the same bytes as an uninterrupted run.
+
+use std::collections::BTreeMap;
+use std::ops::ControlFlow;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use agglo::error::SimError;
+use agglo::output::SampleSchedule;
+use agglo::output::table::{Table, read_table};
+use agglo::run::{Run, RunPlan, Until};
+
+use crate::errors::{AggloError, agglo_error, guard, scenario_error};
+use crate::scenario::Scenario;
+
+/// Wall time between two looks at Python's signal handlers while stepping.
+const SIGNAL_CHECK: Duration = Duration::from_millis(50);
+/// Steps between two looks at the wall clock.
+const CLOCK_CHECK_STEPS: u64 = 16;
+
+/// The tables a run can write, by name.
+const TABLES: [&str; 4] = ["series", "sizes", "snapshots", "collisions"];
+
+/// Where a simulation is.
+enum State {
+    /// Built, perhaps stepped; outputs open.
+    Running(Box<Run>),
+    /// Reached T (or closed): outputs finalised.
+    Done(Box<Done>),
+    /// Only while switching between the two.
+    Switching,
+}
+
+/// A finished run: its simulation, summary and the tables kept in memory.
+struct Done {
+    sim: agglo::schedule::Simulation,
+    summary: agglo::observables::Summary,
+    tables: BTreeMap<String, Table>,
+}
+
+/// The inner state, behind a lock (a Python object may be reached from any thread).
+struct Inner {
+    scenario: agglo::scenario::Scenario,
+    state: State,
+    /// True once outputs were chosen (they cannot be chosen twice).
+    has_outputs: bool,
+    /// Directory of the tables kept in memory (read back and removed at the end).
+    memory_dir: Option<PathBuf>,
+    memory_tables: Vec<String>,
+}
+
+/// One run of a scenario.
+#[pyclass(module = "agglo._agglo", name = "Simulation")]
+pub struct Simulation {
+    inner: Mutex<Inner>,
+}
+
+/// The outputs asked of `run()`.
+#[derive(Default)]
+struct Outputs {
+    tables: BTreeMap<String, Option<PathBuf>>,
+    sampling: Option<String>,
+    record: Option<PathBuf>,
+    summary: Option<PathBuf>,
+    final_state: Option<PathBuf>,
+    live: Option<String>,
+    progress: bool,
+    command_line: Option<String>,
+}
+
+impl Outputs {
+    fn any(&self) -> bool {
+        !self.tables.is_empty()
+            || self.sampling.is_some()
+            || self.record.is_some()
+            || self.summary.is_some()
+            || self.final_state.is_some()
+            || self.live.is_some()
+            || self.progress
+    }
+}
+
+fn start(plan: RunPlan) -> PyResult<Run> {
+    Run::start(plan, Arc::new(AtomicBool::new(false))).map_err(agglo_error)
+}
+
+impl Simulation {
+    fn lock(&self) -> PyResult<MutexGuard<'_, Inner>> {
+        self.inner.try_lock().map_err(|_| {
+            AggloError::new_err("this simulation is running in another thread; wait for it")
+        })
+    }
+}
+
+impl Inner {
+    fn sim(&self) -> &agglo::schedule::Simulation {
+        match &self.state {
+            State::Running(run) => run.sim(),
+            State::Done(done) => &done.sim,
+            State::Switching => unreachable!("switching is never observed"),
+        }
+    }
+
+    /// Apply `outputs`: only before the first step, and once.
+    fn choose_outputs(&mut self, outputs: Outputs) -> PyResult<()> {
+        if !outputs.any() {
+            return Ok(());
+        }
+        let stepped = self.sim().clock().step > 0 || matches!(self.state, State::Done(_));
+        if stepped || self.has_outputs {
+            return Err(scenario_error(
+                "run: outputs (tables, sampling, record, summary, final_state, live, progress) are \
+                 chosen before the first step, once: make a new Simulation to write them",
+            ));
+        }
+        let mut plan = RunPlan::new(self.scenario.clone()).map_err(scenario_error)?;
+        plan.progress = outputs.progress;
+        plan.command_line = outputs
+            .command_line
+            .unwrap_or_else(|| "python: agglo.Simulation.run".into());
+        for (name, path) in outputs.tables {
+            if !TABLES.contains(&name.as_str()) {
+                return Err(scenario_error(format!(
+                    "run: tables: no table `{name}` (allowed: {})",
+                    TABLES.join(", ")
+                )));
+            }
+            let path = match path {
+                Some(p) => p,
+                None => {
+                    let dir = self.memory_dir.get_or_insert_with(memory_dir);
+                    std::fs::create_dir_all(&*dir).map_err(|e| {
+                        agglo_error(anyhow::anyhow!("creating {}: {e}", dir.display()))
+                    })?;
+                    self.memory_tables.push(name.clone());
+                    dir.join(format!("{name}.parquet"))
+                }
+            };
+            let slot = match name.as_str() {
+                "series" => &mut plan.tables.series,
+                "sizes" => &mut plan.tables.sizes,
+                "snapshots" => &mut plan.tables.snapshots,
+                _ => &mut plan.tables.collisions,
+            };
+            *slot = Some(path);
+        }
+        if let Some(json) = outputs.sampling {
+            let schedule: SampleSchedule = serde_json::from_str(&json).map_err(|e| {
+                scenario_error(format!(
+                    "run: sampling: {e} (give {{\"interval\": {{\"dt\": SECONDS}}}}, \
+                     {{\"log\": {{\"per_decade\": K}}}} or {{\"steps\": {{\"every\": K}}}})"
+                ))
+            })?;
+            if let Some((field, allowed, got)) = schedule.problems().first() {
+                return Err(scenario_error(format!(
+                    "run: sampling: {field}: allowed {allowed} (got {got})"
+                )));
+            }
+            plan.tables.sampling = Some(schedule);
+        }
+        if let Some(path) = outputs.record {
+            plan.recording = Some(path);
+        }
+        if let Some(path) = outputs.summary {
+            plan.summary = Some(path);
+        }
+        if let Some(path) = outputs.final_state {
+            plan.final_state = Some(path);
+        }
+        if let Some(addr) = outputs.live {
+            let options = agglo::live::LiveOptions {
+                addr: agglo::live::parse_addr(&addr).map_err(scenario_error)?,
+                wait: false,
+                rate_hz: 10.0,
+                max_bodies: 10_000,
+            };
+            plan.live = Some(options);
+        }
+        // Drop the run built without outputs before building the one with them (its
+        // live server, if any, would hold the port).
+        self.state = State::Switching;
+        self.state = State::Running(Box::new(start(plan)?));
+        self.has_outputs = true;
+        Ok(())
+    }
+
+    /// Finalise the outputs with `outcome` and keep the finished simulation.
+    fn finish(&mut self, outcome: &Result<(), SimError>) -> PyResult<()> {
+        let State::Running(run) = std::mem::replace(&mut self.state, State::Switching) else {
+            return Ok(());
+        };
+        let end = run.finish(outcome);
+        let mut tables = BTreeMap::new();
+        let mut error = end.output_error.map(|e| e.context("recording the run"));
+        if let Some(dir) = self.memory_dir.take() {
+            for name in self.memory_tables.drain(..) {
+                let path = dir.join(format!("{name}.parquet"));
+                match read_table(&path) {
+                    Ok(table) => {
+                        tables.insert(name, table);
+                    }
+                    Err(e) => {
+                        error.get_or_insert(e);
+                    }
+                }
+            }
+            let _ = std::fs::remove_dir_all(&dir);
+        }
+        self.state = State::Done(Box::new(Done {
+            sim: end.sim,
+            summary: end.summary,
+            tables,
+        }));
+        match error {
+            Some(e) => Err(agglo_error(e)),
+            None => Ok(()),
+        }
+    }
+}
+
+/// A private directory for the tables kept in memory.
+fn memory_dir() -> PathBuf {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    std::env::temp_dir().join(format!(
+        "agglo-py-{}-{}",
+        std::process::id(),
+        NEXT.fetch_add(1, Ordering::Relaxed)
+    ))
+}
+
+/// Step `run` to `until` with the GIL released, running Python's signal handlers every
+/// [`SIGNAL_CHECK`]. Returns the run's outcome and the Python error (KeyboardInterrupt)
+/// that stopped it, if one did.
+fn advance(py: Python<'_>, run: &mut Run, until: Until) -> (Result<(), SimError>, Option<PyErr>) {
+    py.detach(|| {
+        let mut raised: Option<PyErr> = None;
+        let mut last_check = Instant::now();
+        let mut steps = 0u64;
+        let outcome = run.advance(until, &mut |_| {
+            steps += 1;
+            if steps.is_multiple_of(CLOCK_CHECK_STEPS) && last_check.elapsed() >= SIGNAL_CHECK {
+                last_check = Instant::now();
+                if let Err(e) = Python::attach(|py| py.check_signals()) {
+                    raised = Some(e);
+                    return ControlFlow::Break(());
+                }
+            }
+            ControlFlow::Continue(())
+        });
+        (outcome, raised)
+    })
+}
+
+#[pymethods]
+impl Simulation {
+    /// A run of `scenario` (its seed, or `seed`), with the built-in physics.
+    #[new]
+    #[pyo3(signature = (scenario, seed=None))]
+    fn new(scenario: &Scenario, seed: Option<u64>) -> PyResult<Self> {
+        guard(|| {
+            let mut scenario = scenario.inner.clone();
+            if let Some(seed) = seed {
+                scenario.seed = seed;
+            }
+            let plan = RunPlan::new(scenario.clone()).map_err(scenario_error)?;
+            let run = start(plan)?;
+            Ok(Self {
+                inner: Mutex::new(Inner {
+                    scenario,
+                    state: State::Running(Box::new(run)),
+                    has_outputs: false,
+                    memory_dir: None,
+                    memory_tables: Vec::new(),
+                }),
+            })
+        })
+    }
+
+    /// Advance to `until` [s] (the first step boundary at or after it; None: to T),
+    /// writing the outputs chosen (before the first step): `tables` maps a table name
+    /// (series, sizes, snapshots, collisions) to a path, or to None to keep it in memory;
+    /// `sampling` is the JSON of `output.sampling`; `record`, `summary`, `final_state`
+    /// are paths; `live` an address to serve the run on; `command_line` what the
+    /// recording keeps as its command line. Returns True once T is reached
+    /// (the outputs are then finalised).
+    #[pyo3(signature = (until=None, tables=None, sampling=None, record=None, summary=None, final_state=None, live=None, progress=false, command_line=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &self,
+        py: Python<'_>,
+        until: Option<f64>,
+        tables: Option<BTreeMap<String, Option<PathBuf>>>,
+        sampling: Option<String>,
+        record: Option<PathBuf>,
+        summary: Option<PathBuf>,
+        final_state: Option<PathBuf>,
+        live: Option<String>,
+        progress: bool,
+        command_line: Option<String>,
+    ) -> PyResult<bool> {
+        guard(|| {
+            if let Some(t) = until
+                && !t.is_finite()
+            {
+                return Err(scenario_error(format!(
+                    "run: until: a finite time [s] (got {t})"
+                )));
+            }
+            let mut inner = self.lock()?;
+            inner.choose_outputs(Outputs {
+                tables: tables.unwrap_or_default(),
+                sampling,
+                record,
+                summary,
+                final_state,
+                live,
+                progress,
+                command_line,
+            })?;
+            let until = until.map_or(Until::End, Until::Time);
+            self.advance_locked(py, &mut inner, until)
+        })
+    }
+
+    /// Advance `n` steps (events, on the event core), or to T. Returns True once T is
+    /// reached.
+    #[pyo3(signature = (n=1))]
+    fn step(&self, py: Python<'_>, n: u64) -> PyResult<bool> {
+        guard(|| {
+            let mut inner = self.lock()?;
+            self.advance_locked(py, &mut inner, Until::Steps(n))
+        })
+    }
+
+    /// Finalise the outputs now (the recording says the run was stopped at this time).
+    /// Nothing happens if the run is already finished.
+    fn close(&self) -> PyResult<()> {
+        guard(|| {
+            let mut inner = self.lock()?;
+            let c = inner.sim().clock();
+            inner.finish(&Err(SimError::Interrupted {
+                step: c.step,
+                time: c.time,
+            }))
+        })
+    }
+
+    /// Simulated time [s].
+    #[getter]
+    fn t(&self) -> PyResult<f64> {
+        Ok(self.lock()?.sim().clock().time)
+    }
+
+    /// Steps taken (events, on the event core).
+    #[getter]
+    fn steps(&self) -> PyResult<u64> {
+        Ok(self.lock()?.sim().clock().step)
+    }
+
+    /// True once T is reached.
+    #[getter]
+    fn finished(&self) -> PyResult<bool> {
+        Ok(matches!(self.lock()?.state, State::Done(_)))
+    }
+
+    /// The scenario being run.
+    #[getter]
+    fn scenario(&self) -> PyResult<Scenario> {
+        Ok(Scenario {
+            inner: self.lock()?.scenario.clone(),
+        })
+    }
+
+    /// The counters (impacts, bonds, bounces, …) as JSON text.
+    fn counters_json(&self) -> PyResult<String> {
+        let counters = self.lock()?.sim().counters();
+        serde_json::to_string(&counters).map_err(|e| agglo_error(e.into()))
+    }
+
+    /// The summary (what `agglo run --summary` writes) as JSON text: of the run so far,
+    /// or of the finished run.
+    fn summary_json(&self) -> PyResult<String> {
+        guard(|| {
+            let inner = self.lock()?;
+            let summary = match &inner.state {
+                State::Done(done) => done.summary.clone(),
+                _ => {
+                    let sim = inner.sim();
+                    agglo::observables::Summary::new(sim, &sim.bodies())
+                }
+            };
+            serde_json::to_string_pretty(&summary).map_err(|e| agglo_error(e.into()))
+        })
+    }
+
+    /// The pipeline: the core, the systems in order, and why the others are left out.
+    fn pipeline_json(&self) -> PyResult<String> {
+        let inner = self.lock()?;
+        serde_json::to_string(inner.sim().pipeline()).map_err(|e| agglo_error(e.into()))
+    }
+
+    /// Every body now, id-sorted, as a dict of arrays (the `--final-state` columns).
+    fn bodies<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        guard(|| {
+            let inner = self.lock()?;
+            let sim = inner.sim();
+            let (bodies, carried) = py.detach(|| (sim.bodies(), sim.carried()));
+            crate::columns::bodies_columns(py, &bodies, &carried)
+        })
+    }
+
+    /// Seconds the engine takes to read every body (`Simulation::bodies`, no conversion):
+    /// the reference of `bodies()`'s cost in python/bench.py.
+    fn _time_bodies_read(&self, py: Python<'_>) -> PyResult<f64> {
+        let inner = self.lock()?;
+        let sim = inner.sim();
+        Ok(py.detach(|| {
+            let start = Instant::now();
+            let bodies = sim.bodies();
+            let seconds = start.elapsed().as_secs_f64();
+            drop(bodies);
+            seconds
+        }))
+    }
+
+    /// A table kept in memory (`run(tables={"series": None})`), once the run is
+    /// finished, as a dict of columns.
+    fn table<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+        guard(|| {
+            let inner = self.lock()?;
+            let State::Done(done) = &inner.state else {
+                return Err(AggloError::new_err(format!(
+                    "table `{name}`: the tables kept in memory are read when the run is \
+                     finished (run() to T, or close())"
+                )));
+            };
+            let table = done.tables.get(name).cloned().ok_or_else(|| {
+                scenario_error(format!(
+                    "table `{name}`: not kept in memory by this run (kept: {})",
+                    done.tables.keys().cloned().collect::<Vec<_>>().join(", ")
+                ))
+            })?;
+            crate::columns::table_columns(py, table)
+        })
+    }
+}
+
+impl Simulation {
+    fn advance_locked(&self, py: Python<'_>, inner: &mut Inner, until: Until) -> PyResult<bool> {
+        let State::Running(run) = &mut inner.state else {
+            return Ok(true);
+        };
+        let (outcome, raised) = advance(py, run, until);
+        if let Some(err) = raised {
+            // Ctrl-C (or another signal handler's exception): the run stays valid.
+            return Err(err);
+        }
+        let reached_end = run.is_finished();
+        match outcome {
+            Ok(()) if reached_end => {
+                inner.finish(&Ok(()))?;
+                Ok(true)
+            }
+            Ok(()) => Ok(false),
+            Err(e) => {
+                let message = e.to_string();
+                // A failing output or a failed run: finalise what was written.
+                inner.finish(&Err(e))?;
+                Err(AggloError::new_err(format!(
+                    "running the scenario: {message}"
+                )))
+            }
+        }
+    }
+}
+
+impl Drop for Simulation {
+    /// A simulation dropped before T finalises its outputs, so that its recording and
+    /// tables are valid files.
+    fn drop(&mut self) {
+        let inner = self.inner.get_mut().unwrap_or_else(|p| p.into_inner());
+        if let State::Running(run) = &inner.state {
+            let c = run.sim().clock();
+            let _ = inner.finish(&Err(SimError::Interrupted {
+                step: c.step,
+                time: c.time,
+            }));
+        }
+    }
+}

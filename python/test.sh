@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# The Python front's tests: build and install the package into a fresh virtual
+# environment (pip fetches maturin, the build backend, itself), then run the pytest
+# suite and the tutorial. Needs the agglo binary built first (`cargo build`), which the
+# tests compare against; $AGGLO_BIN overrides where it is.
+#   usage: python/test.sh            (from anywhere; VENV=dir to choose the environment)
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+venv="${VENV:-$root/target/python-venv}"
+python3 -m venv "$venv"
+"$venv/bin/pip" install --quiet --upgrade pip
+start=$(date +%s)
+"$venv/bin/pip" install --quiet "$root/python[test]"
+echo "pip install ./python[test]: $(( $(date +%s) - start )) s"
+export AGGLO_BIN="${AGGLO_BIN:-$root/target/debug/agglo}"
+cd "$root"
+"$venv/bin/python" -m pytest -q python/tests
+"$venv/bin/python" docs/python_tutorial.py

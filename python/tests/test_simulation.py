@@ -1,0 +1,197 @@
+"""Runs from Python go through the code `agglo run` calls: the same bytes, the same
+numbers for any thread count, a valid state after Ctrl-C."""
+
+import _thread
+import json
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import agglo
+
+# A short quick_demo (300 bodies, event core, merging and fragmenting): ~1 s in a debug build.
+SHORT = {"time.end": 1e-3}
+
+
+def quick(scenarios, **settings):
+    return agglo.Scenario.load(scenarios / "quick_demo.json").set({**SHORT, **settings})
+
+
+def test_a_run_writes_the_bytes_agglo_run_writes(scenarios, agglo_bin, tmp_path):
+    """Tables, final state, recording byte for byte; the summary but for its wall time."""
+    scenario = tmp_path / "s.json"
+    quick(scenarios).save(scenario)
+    cli, py = tmp_path / "cli", tmp_path / "py"
+    cli.mkdir(), py.mkdir()
+    names = dict(series="series.csv", sizes="sizes.parquet", snapshots="snap.csv", collisions="coll.csv")
+    args = [str(agglo_bin), "run", str(scenario), "--seed", "4", "-q", "--out", "run.mcap",
+            "--final-state", "final.csv", "--summary", "summary.json", "--sample-every", "1e-4"]
+    for table, name in names.items():
+        args += [f"--{table}", name]
+    subprocess.run(args, cwd=cli, check=True)
+    # The recording keeps its command line: give the same text to get the same bytes.
+    with_live_flags_left_out = " ".join(args)
+    sim = agglo.Simulation(agglo.Scenario.load(scenario), seed=4)
+    assert sim.run(
+        tables={t: py / n for t, n in names.items()},
+        sampling={"interval": {"dt": 1e-4}},
+        record=py / "run.mcap",
+        final_state=py / "final.csv",
+        summary=py / "summary.json",
+        command_line=with_live_flags_left_out,
+    )
+    for name in [*names.values(), "final.csv", "run.layout.json"]:
+        assert (cli / name).read_bytes() == (py / name).read_bytes(), name
+    mcap_cli, mcap_py = (cli / "run.mcap").read_bytes(), (py / "run.mcap").read_bytes()
+    assert len(mcap_cli) > 10_000 and mcap_cli == mcap_py
+    a, b = (json.loads((d / "summary.json").read_text()) for d in (cli, py))
+    a.pop("wall_seconds"), b.pop("wall_seconds")
+    assert a == b
+
+
+def test_bodies_are_the_final_state_columns(scenarios, agglo_bin, tmp_path):
+    sim = agglo.Simulation(quick(scenarios), seed=2)
+    sim.run(final_state=tmp_path / "final.csv")
+    bodies = sim.bodies()
+    csv = pd.read_csv(tmp_path / "final.csv")
+    assert list(bodies) == list(csv.columns)
+    for column in csv.columns:
+        np.testing.assert_array_equal(bodies[column], csv[column].to_numpy(), err_msg=column)
+    assert bodies["id"].dtype == np.uint64 and bodies["mass"].dtype == np.float64
+    assert np.all(np.diff(bodies["id"].astype(np.int64)) > 0), "sorted by id"
+    assert bodies.units["mass"] == "kg" and bodies.units["x"] == "m"
+
+
+def test_tables_kept_in_memory_equal_the_files(scenarios, tmp_path):
+    a = agglo.Simulation(quick(scenarios), seed=5)
+    a.run(tables=["series", "sizes", "collisions"])
+    b = agglo.Simulation(quick(scenarios), seed=5)
+    b.run(tables={"series": tmp_path / "series.parquet", "collisions": tmp_path / "c.csv"})
+    from_file = pd.read_parquet(tmp_path / "series.parquet")
+    pd.testing.assert_frame_equal(a.series().to_pandas(), from_file, check_dtype=False)
+    coll = a.collisions().to_pandas()
+    assert len(coll) == a.counters["impacts"] > 0
+    assert list(coll.columns) == list(pd.read_csv(tmp_path / "c.csv").columns)
+    assert len(a.sizes()) > 0
+    with pytest.raises(agglo.ScenarioError, match="not kept in memory"):
+        a.snapshots()
+    # Conversions keep every column.
+    s = a.series()
+    assert s.to_numpy().dtype.names == tuple(s.columns)
+    s.to_csv(tmp_path / "s.csv")
+    np.testing.assert_array_equal(pd.read_csv(tmp_path / "s.csv")["t"], s["t"])
+    s.to_parquet(tmp_path / "s.parquet")
+    import pyarrow.parquet as pq
+    assert pq.read_schema(tmp_path / "s.parquet").field("t").metadata[b"unit"] == b"s"
+
+
+def test_stepping_in_pieces_gives_the_run_in_one_go(scenarios):
+    whole = agglo.Simulation(quick(scenarios), seed=6)
+    whole.run()
+    pieces = agglo.Simulation(quick(scenarios), seed=6)
+    assert not pieces.step(10)
+    assert pieces.steps == 10
+    assert not pieces.run(until=4e-4)
+    assert pieces.t >= 4e-4
+    assert pieces.run()
+    assert pieces.finished and pieces.t == whole.t
+    for column in whole.bodies():
+        np.testing.assert_array_equal(whole.bodies()[column], pieces.bodies()[column])
+    with pytest.raises(agglo.ScenarioError, match="before the first step"):
+        pieces.run(tables=["series"])
+
+
+def test_ctrl_c_raises_keyboard_interrupt_and_the_run_continues_to_the_same_bytes(scenarios, tmp_path):
+    # Long enough (seconds, even in a release build) that the interrupt lands mid-run.
+    scenario = agglo.Scenario.load(scenarios / "ballistic_aggregation.json").set(
+        {"cloud.count": 40000, "time.end": 0.05}
+    )
+    reference = agglo.Simulation(scenario, seed=1)
+    reference.run(tables={"series": tmp_path / "ref.csv"})
+    sim = agglo.Simulation(scenario, seed=1)
+    interrupted_at = []
+
+    def interrupt():
+        interrupted_at.append(time.monotonic())
+        _thread.interrupt_main()  # as Ctrl-C: SIGINT's Python handler, run at a step boundary
+
+    timer = threading.Timer(0.05, interrupt)
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        sim.run(tables={"series": tmp_path / "cut.csv"})
+    raised_at = time.monotonic()
+    timer.join()
+    assert not sim.finished and 0 < sim.t < scenario.time.end, sim.t
+    # 50 ms between looks at the handlers; a loaded CI machine gets a generous margin.
+    assert raised_at - interrupted_at[0] < 1.0
+    assert sim.run()
+    assert (tmp_path / "ref.csv").read_bytes() == (tmp_path / "cut.csv").read_bytes()
+    np.testing.assert_array_equal(reference.bodies()["x"], sim.bodies()["x"])
+
+
+def test_a_simulation_dropped_early_leaves_a_finalised_recording(scenarios, agglo_bin, tmp_path):
+    sim = agglo.Simulation(quick(scenarios), seed=1)
+    sim.run(until=2e-4, record=tmp_path / "cut.mcap")
+    del sim
+    report = subprocess.run([str(agglo_bin), "inspect", "--json", str(tmp_path / "cut.mcap")],
+                            capture_output=True, text=True, check=True)
+    inspection = json.loads(report.stdout)
+    assert inspection["finalised"] is True and inspection["damage"] is None, inspection
+
+
+def test_ensemble_is_the_same_for_any_thread_count_and_as_single_runs(scenarios):
+    s = quick(scenarios)
+    one = agglo.ensemble(s, seeds=[3, 1, 2], threads=1, tables=["series"])
+    two = agglo.ensemble(s, seeds=[3, 1, 2], threads=2, tables=["series"])
+    for a, b in zip(one.summaries, two.summaries):
+        a.pop("wall_seconds"), b.pop("wall_seconds")
+        assert a == b
+    pd.testing.assert_frame_equal(one["series"].to_pandas(), two["series"].to_pandas())
+    single = agglo.Simulation(s, seed=1)
+    single.run()
+    row = one.summary.to_pandas().set_index("seed").loc[1]
+    assert row["final_bodies"] == single.summary()["final_bodies"]
+    assert row["growth.growth_ratio"] == single.summary()["growth"]["growth_ratio"]
+    assert list(one["series"]["seed"][:1]) == [3]
+
+
+def test_two_simulations_run_on_two_python_threads(scenarios):
+    """The GIL is released while stepping: both runs progress and give their own
+    results (the speed-up is measured in python/bench.py)."""
+    s = quick(scenarios)
+    expected = {}
+    for seed in (1, 2):
+        sim = agglo.Simulation(s, seed=seed)
+        sim.run()
+        expected[seed] = sim.summary()["final_bodies"]
+    got = {}
+
+    def work(seed):
+        sim = agglo.Simulation(s, seed=seed)
+        sim.run()
+        got[seed] = sim.summary()["final_bodies"]
+
+    threads = [threading.Thread(target=work, args=(seed,)) for seed in (1, 2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert got == expected
+
+
+def test_errors_name_the_field_and_no_panic_crosses(scenarios, tmp_path):
+    sim = agglo.Simulation(quick(scenarios))
+    with pytest.raises(agglo.ScenarioError, match="no table `nosuch`"):
+        sim.run(tables=["nosuch"])
+    with pytest.raises(agglo.ScenarioError, match="sampling"):
+        sim.run(sampling={"interval": {"dt": -1}})
+    with pytest.raises(agglo.ScenarioError, match="until"):
+        sim.run(until=float("nan"))
+    with pytest.raises(agglo.AggloError):
+        agglo.Simulation(quick(scenarios)).run(record=tmp_path / "no" / "such" / "dir.mcap")
+    with pytest.raises(agglo.ScenarioError, match="seeds"):
+        agglo.ensemble(quick(scenarios), seeds=[])
