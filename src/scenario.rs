@@ -519,6 +519,37 @@ impl Scenario {
     }
 }
 
+impl Scenario {
+    /// The scenario's name as a plain file name for the files named after it (the
+    /// restart file `NAME.restart`, the live layout): characters other than letters,
+    /// digits, `-`, `_` and `.` become `_` (a name carries `--set` settings, whose
+    /// values may hold "/"), and a name longer than 100 bytes is cut to 80 characters
+    /// followed by a hash of the whole name (a long name failed with "File name too
+    /// long" at the first checkpoint). Short plain names are unchanged.
+    pub fn file_stem(&self) -> String {
+        let plain: String = self
+            .name
+            .chars()
+            .map(|c| {
+                if c.is_alphanumeric() || "-_.".contains(c) {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        if plain.len() <= 100 {
+            return plain;
+        }
+        // FNV-1a, 64 bits: stable across builds and platforms.
+        let hash = self.name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        });
+        let head: String = plain.chars().take(80).collect();
+        format!("{head}-{hash:016x}")
+    }
+}
+
 /// Temperatures [K] whose fourth power (the radiation law, θ⁴) stays finite with room
 /// for the Stefan–Boltzmann factor: θ ≤ 1e70 K.
 const MAX_TEMPERATURE: f64 = 1e70;

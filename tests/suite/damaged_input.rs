@@ -668,3 +668,145 @@ fn a_body_of_1e5_primaries_fragments_in_seconds() {
     let closest = agglo::systems::fragment::closest_distance(&offsets);
     assert!(closest >= 2e-6, "{closest:e}");
 }
+
+/// `--out run.restart` with `output.restart`: the restart file (beside the recording,
+/// RUN.restart) was the recording itself, overwritten at the first checkpoint, exit 0.
+#[test]
+fn a_recording_on_the_restart_files_path_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(
+        dir.path(),
+        json!({ "output": { "restart": { "every": 0.0004 } } }),
+    );
+    let out = agglo_within(
+        &["run", scene.to_str().unwrap(), "-q", "--out", "run.restart"],
+        dir.path(),
+        LIMIT,
+    );
+    assert!(out.refused(), "{:?} {}", out.status, out.stderr);
+    assert!(
+        out.stderr.contains("--out") && out.stderr.contains("restart file"),
+        "{}",
+        out.stderr
+    );
+}
+
+/// A long scenario name failed at the first checkpoint ("File name too long", labelled
+/// "recording the run"); a "/" in the name (or a `--set` value, which the name carries)
+/// stopped `--live` from starting. The files named after the scene now get a plain,
+/// short name.
+#[test]
+fn long_names_and_slashes_in_names_make_plain_file_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let long = "n".repeat(300);
+    let scene = write_scene(
+        dir.path(),
+        json!({ "name": long, "output": { "restart": { "every": 0.0004 } } }),
+    );
+    let out = agglo_within(&["run", scene.to_str().unwrap(), "-q"], dir.path(), LIMIT);
+    assert!(out.ok(), "{}", out.stderr);
+    let restart: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".restart"))
+        .collect();
+    assert_eq!(restart.len(), 1, "{restart:?}");
+    assert!(restart[0].len() < 120, "{}", restart[0]);
+
+    let scene = write_scene(dir.path(), json!({ "name": "a/b" }));
+    let out = agglo_within(
+        &[
+            "run",
+            scene.to_str().unwrap(),
+            "-q",
+            "--set",
+            "description=x/y",
+            "--live",
+            "127.0.0.1:0",
+        ],
+        dir.path(),
+        LIMIT,
+    );
+    assert!(out.ok(), "{}", out.stderr);
+}
+
+/// Send `signal` to a child (by its own pid) and wait at most `limit` for it to end.
+fn signal_and_wait(child: &mut std::process::Child, signal: i32, limit: Duration) -> Option<i32> {
+    // SAFETY: kill has no preconditions; the pid is our own child's.
+    unsafe { libc::kill(child.id() as i32, signal) };
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return Some(status.code().unwrap_or(-1));
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// A stop signal always stops: a run inside a step that never ends (a test hook holds
+/// step 3) exits within about a second of SIGTERM, with 128 + 15, naming the signal.
+/// Main's run went on until a second signal (`timeout` sends one: 22 minutes).
+#[test]
+fn sigterm_stops_a_run_stuck_inside_a_step_within_a_second() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(
+        dir.path(),
+        json!({ "time": { "end": 1.0, "core": "stepped" } }),
+    );
+    let mut child = Command::new(env!("CARGO_BIN_EXE_agglo"))
+        .args(["run", scene.to_str().unwrap(), "-q", "--out", "r.mcap"])
+        .env("AGGLO_TEST_STUCK_AT_STEP", "3")
+        .current_dir(dir.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let start = Instant::now();
+    let code = signal_and_wait(&mut child, libc::SIGTERM, Duration::from_secs(20));
+    let took = start.elapsed();
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+    assert_eq!(code, Some(128 + 15), "{stderr}");
+    // One second of grace, plus the watchdog's 20 ms polls and the exit.
+    assert!(took < Duration::from_secs(3), "{took:?}");
+    assert!(stderr.contains("SIGTERM"), "{stderr}");
+    // The recording reads up to its last complete chunk.
+    assert!(agglo::record::inspect(&dir.path().join("r.mcap")).is_ok());
+}
+
+/// The case from the issue: `--sample-every 1e-300` spun inside one step and SIGTERM did
+/// nothing. The run now steps normally and stops at the next step end.
+#[test]
+fn sigterm_stops_a_run_with_a_tiny_sample_interval() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(
+        dir.path(),
+        json!({ "time": { "end": 1000.0, "core": "stepped" } }),
+    );
+    let mut child = Command::new(env!("CARGO_BIN_EXE_agglo"))
+        .args([
+            "run",
+            scene.to_str().unwrap(),
+            "-q",
+            "--series",
+            "s.csv",
+            "--sample-every",
+            "1e-300",
+        ])
+        .current_dir(dir.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let code = signal_and_wait(&mut child, libc::SIGTERM, Duration::from_secs(10));
+    // Stopped by the signal (non-zero), or already finished: either way not spinning.
+    assert!(code.is_some(), "still running 10 s after SIGTERM");
+}
