@@ -184,7 +184,7 @@ impl RestartSnapshot {
     /// scenario's bodies are (a file altered and its checksum recomputed by hand once
     /// hung or panicked on resume): the clock finite and within [0, T]; every body's
     /// state finite, its mass, radius and temperature positive, its primaries ≥ 1, its
-    /// radius below the box's half-width, its own time not past the clock; distinct
+    /// volume below the box's, its own time not past the clock; distinct
     /// ids, none in the range new ids are drawn from; the checkpoint schedule the
     /// scene's. O(N log N). The error names the body and the quantity.
     pub fn check(
@@ -218,6 +218,16 @@ impl RestartSnapshot {
                     "finite numbers",
                 );
             }
+            let speed = glam::DVec3::from_array(b.velocity).length();
+            if speed > crate::scene::MAX_SPEED {
+                // A scenario refuses such a speed too; on the event core a body at 7e38
+                // m/s crossed cells without end inside one step.
+                return bad(
+                    "speed",
+                    format!("{speed:e} m/s"),
+                    &format!("at most {:e} m/s", crate::scene::MAX_SPEED),
+                );
+            }
             for (what, x) in [
                 ("mass", b.mass),
                 ("radius", b.radius),
@@ -227,11 +237,12 @@ impl RestartSnapshot {
                     return bad(what, format!("{x:e}"), "a finite number > 0");
                 }
             }
-            if b.radius >= half_width {
+            let largest = (6.0 / std::f64::consts::PI).cbrt() * half_width;
+            if b.radius > largest {
                 return bad(
                     "radius",
                     format!("{:e} m", b.radius),
-                    &format!("less than the box's half-width {half_width:e} m"),
+                    &format!("at most (6/π)^(1/3) D = {largest:e} m (the box's volume)"),
                 );
             }
             if !(b.hardness.is_finite() && b.hardness >= 0.0) {

@@ -50,8 +50,24 @@ impl SlotIds {
             self.dense[k] = slot;
             return;
         }
-        if id < DENSE_SLACK + 2 * slots as u64 {
-            self.dense.resize(id as usize + 1, NONE);
+        let bound = DENSE_SLACK + 2 * slots as u64;
+        if id < bound {
+            // Grow geometrically (within the bound), so the map is swept O(log N) times;
+            // ids the map holds below the new length move into the table, where `get`
+            // looks for them.
+            let len = (id as usize + 1)
+                .max(2 * self.dense.len())
+                .min(bound as usize);
+            self.dense.resize(len, NONE);
+            let dense = &mut self.dense;
+            self.sparse
+                .retain(|&k, &mut s| match dense.get_mut(k as usize) {
+                    Some(d) => {
+                        *d = s;
+                        false
+                    }
+                    None => true,
+                });
             self.dense[id as usize] = slot;
         } else {
             self.sparse.insert(id, slot);
@@ -94,5 +110,24 @@ mod tests {
         t.clear(3);
         assert_eq!(t.get(u64::MAX), None);
         assert_eq!(t.get(3), None);
+    }
+
+    #[test]
+    fn an_id_in_the_map_is_found_after_the_table_grows_past_it() {
+        // Bodies inserted in space order: id 1500 arrives while there are few slots (to
+        // the map), then the table grows past it. A run stalled on this once.
+        let mut t = SlotIds::default();
+        t.set(1500, 0, 1);
+        for (slot, id) in (1..1200u32).zip(0u64..) {
+            t.set(id, slot, slot as usize + 1);
+        }
+        t.set(1600, 1200, 1201);
+        assert_eq!(t.get(1600), Some(1200));
+        assert_eq!(t.get(1500), Some(0));
+        t.clear(1500);
+        assert_eq!(t.get(1500), None);
+        for id in 0..1199 {
+            assert_eq!(t.get(id), Some(id as u32 + 1));
+        }
     }
 }

@@ -810,3 +810,23 @@ fn sigterm_stops_a_run_with_a_tiny_sample_interval() {
     // Stopped by the signal (non-zero), or already finished: either way not spinning.
     assert!(code.is_some(), "still running 10 s after SIGTERM");
 }
+
+/// Found by the fuzz harness: one flipped bit in a restart file's snapshot (checksum
+/// recomputed) gave a body a speed of 7e38 m/s, and the resumed event core crossed
+/// cells without end inside one step. A snapshot's speeds are held to the scenario's
+/// limit (1e5 m/s).
+#[test]
+fn a_restart_snapshot_with_an_absurd_speed_is_refused() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_corpus/run.restart");
+    let bytes = std::fs::read(&path).unwrap();
+    // Byte 1690 of the body (after the 22-byte header), bit 3: body 1's v_y.
+    let mut body = bytes[22..].to_vec();
+    body[1690] ^= 1 << 3;
+    let mut file = bytes[..22].to_vec();
+    file[18..22].copy_from_slice(&crc32fast::hash(&body).to_le_bytes());
+    file.extend_from_slice(&body);
+    let (scenario, snapshot) = agglo::restart::decode(&path, &file).unwrap();
+    let mut sim = Simulation::new(&scenario).unwrap();
+    let err = sim.resume(&snapshot).unwrap_err().to_string();
+    assert!(err.contains("body 1") && err.contains("speed"), "{err}");
+}

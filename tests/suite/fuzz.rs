@@ -147,6 +147,23 @@ fn set(v: &mut Value, path: &str, x: Value) {
     *slot = x;
 }
 
+/// Run `work` on its own thread and fail (naming `case`) if it has not finished within
+/// 20 s — a hang fails the test instead of holding up the suite (the thread is left
+/// behind; the test binary ends with the failure).
+fn within_time(case: String, work: impl FnOnce() + Send + 'static) {
+    let (done, wait) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        work();
+        let _ = done.send(());
+    });
+    match wait.recv_timeout(std::time::Duration::from_secs(20)) {
+        Ok(()) => {}
+        Err(std::sync::mpsc::RecvTimeoutError::Timeout) => panic!("hung over 20 s: {case}"),
+        // The work panicked: its own message is on stderr.
+        Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => panic!("panicked: {case}"),
+    }
+}
+
 /// A scenario that loads is built and stepped a little: the derived constants of any
 /// accepted scene must not panic, spin or turn to NaN silently. At most 50 steps and
 /// 2000 bodies (a larger count is the memory check's business, tested elsewhere).
@@ -165,7 +182,7 @@ fn build_and_step(s: &Scenario) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 96, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
 
     /// The scenario loader and its derived constants: one or two numeric fields of the
     /// seed scenario set to extreme values; what loads is built and stepped.
@@ -179,8 +196,8 @@ proptest! {
         for (k, x) in picks {
             set(&mut v, &paths[k % paths.len()], x);
         }
-        if let Ok(s) = Scenario::from_value(v) {
-            build_and_step(&s);
+        if let Ok(s) = Scenario::from_value(v.clone()) {
+            within_time(v.to_string(), move || build_and_step(&s));
         }
     }
 
@@ -245,15 +262,18 @@ proptest! {
         let crc = crc32fast::hash(&body);
         file[header - 4..].copy_from_slice(&crc.to_le_bytes());
         file.append(&mut body);
-        if let Ok((scenario, snapshot)) = agglo::restart::decode(Path::new("r.restart"), &file)
-            && let Ok(mut sim) = Simulation::new(&scenario)
-            && sim.resume(&snapshot).is_ok()
-        {
-            for _ in 0..50 {
-                if sim.is_finished() || sim.step().is_err() {
-                    break;
+        if let Ok((scenario, snapshot)) = agglo::restart::decode(Path::new("r.restart"), &file) {
+            within_time(format!("{e:?}"), move || {
+                if let Ok(mut sim) = Simulation::new(&scenario)
+                    && sim.resume(&snapshot).is_ok()
+                {
+                    for _ in 0..50 {
+                        if sim.is_finished() || sim.step().is_err() {
+                            break;
+                        }
+                    }
                 }
-            }
+            });
         }
     }
 
