@@ -811,22 +811,55 @@ fn sigterm_stops_a_run_with_a_tiny_sample_interval() {
     assert!(code.is_some(), "still running 10 s after SIGTERM");
 }
 
-/// Found by the fuzz harness: one flipped bit in a restart file's snapshot (checksum
-/// recomputed) gave a body a speed of 7e38 m/s, and the resumed event core crossed
-/// cells without end inside one step. A snapshot's speeds are held to the scenario's
-/// limit (1e5 m/s).
+/// Found by the fuzz harness: one byte changed in a restart file's snapshot (checksum
+/// recomputed) gave a body a speed of 7e38 m/s, or a local time of −7e222 s, and the
+/// resumed event core crossed cells without end inside one step. A snapshot's speeds
+/// are held to the scenario's limit (1e5 m/s), its local times to [0, t].
 #[test]
-fn a_restart_snapshot_with_an_absurd_speed_is_refused() {
+fn a_restart_snapshot_with_an_absurd_speed_or_local_time_is_refused() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_corpus/run.restart");
     let bytes = std::fs::read(&path).unwrap();
-    // Byte 1690 of the body (after the 22-byte header), bit 3: body 1's v_y.
-    let mut body = bytes[22..].to_vec();
-    body[1690] ^= 1 << 3;
-    let mut file = bytes[..22].to_vec();
-    file[18..22].copy_from_slice(&crc32fast::hash(&body).to_le_bytes());
-    file.extend_from_slice(&body);
-    let (scenario, snapshot) = agglo::restart::decode(&path, &file).unwrap();
-    let mut sim = Simulation::new(&scenario).unwrap();
-    let err = sim.resume(&snapshot).unwrap_err().to_string();
-    assert!(err.contains("body 1") && err.contains("speed"), "{err}");
+    // Bytes of the body (after the 22-byte header): 1690 is in body 1's v_y (bit 3
+    // flipped), 1843 in body 2's local time (set to 238).
+    for (at, edit, words) in [
+        (
+            1690,
+            Box::new(|b: u8| b ^ (1 << 3)) as Box<dyn Fn(u8) -> u8>,
+            "body 1 (id 1): speed",
+        ),
+        (1843, Box::new(|_| 238), "body 2 (id 2): local time"),
+    ] {
+        let mut body = bytes[22..].to_vec();
+        body[at] = edit(body[at]);
+        let mut file = bytes[..22].to_vec();
+        file[18..22].copy_from_slice(&crc32fast::hash(&body).to_le_bytes());
+        file.extend_from_slice(&body);
+        let (scenario, snapshot) = agglo::restart::decode(&path, &file).unwrap();
+        let mut sim = Simulation::new(&scenario).unwrap();
+        let err = sim.resume(&snapshot).unwrap_err().to_string();
+        assert!(err.contains(words), "{words}: {err}");
+    }
+}
+
+/// Found by the fuzz harness: one flipped bit in a Parquet body table's footer made the
+/// parquet crate panic ("column start and length should not be negative", "Decoder for
+/// dict should have been set"). Now each is an error naming the file.
+#[test]
+fn a_flipped_bit_in_a_parquet_footer_is_an_error_not_a_panic() {
+    let bytes = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_corpus/bodies.parquet"),
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    for (at, bit) in [(3631, 0), (3630, 7), (3626, 0)] {
+        let mut b = bytes.clone();
+        b[at] ^= 1 << bit;
+        let path = dir.path().join(format!("flip_{at}_{bit}.parquet"));
+        std::fs::write(&path, &b).unwrap();
+        let err = agglo::cloud_file::load_bodies(&path).unwrap_err();
+        assert!(
+            format!("{err:#}").contains("damaged"),
+            "flip at {at}: {err:#}"
+        );
+    }
 }
