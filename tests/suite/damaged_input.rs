@@ -812,9 +812,10 @@ fn sigterm_stops_a_run_with_a_tiny_sample_interval() {
 }
 
 /// Found by the fuzz harness: one byte changed in a restart file's snapshot (checksum
-/// recomputed) gave a body a speed of 7e38 m/s, or a local time of −7e222 s, and the
-/// resumed event core crossed cells without end inside one step. A snapshot's speeds
-/// are held to the scenario's limit (1e5 m/s), its local times to [0, t].
+/// recomputed) gave a body a speed of 7e38 m/s, a local time of −7e222 s, or the event
+/// core's grid a frame velocity of ~1e300 m/s, and the resumed event core crossed cells
+/// without end inside one step. A snapshot's speeds (bodies' and frame's) are held to
+/// the scenario's limit (1e5 m/s), its local times to [0, t].
 #[test]
 fn a_restart_snapshot_with_an_absurd_speed_or_local_time_is_refused() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_corpus/run.restart");
@@ -828,6 +829,8 @@ fn a_restart_snapshot_with_an_absurd_speed_or_local_time_is_refused() {
             "body 1 (id 1): speed",
         ),
         (1843, Box::new(|_| 238), "body 2 (id 2): local time"),
+        // The event core's saved frame velocity (z, its exponent's byte), bit 6.
+        (2753, Box::new(|b: u8| b ^ (1 << 6)), "frame velocity"),
     ] {
         let mut body = bytes[22..].to_vec();
         body[at] = edit(body[at]);

@@ -186,10 +186,10 @@ fn build_and_step(s: &Scenario) {
 /// others (how the cases behind the named regression tests in `damaged_input.rs` were
 /// found).
 fn fuzz_config() -> ProptestConfig {
-    let mut config = ProptestConfig {
-        cases: 256,
-        ..ProptestConfig::default()
-    };
+    let mut config = ProptestConfig::default();
+    if std::env::var_os("PROPTEST_CASES").is_none() {
+        config.cases = 256;
+    }
     if std::env::var_os("PROPTEST_RNG_SEED").is_none() {
         config.rng_seed = proptest::test_runner::RngSeed::Fixed(33);
     }
