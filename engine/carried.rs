@@ -11,6 +11,9 @@
 //! recorded `/stats` message carries the value of the whole cloud combined by the rule
 //! ([`carried_totals`]).
 //!
+//! Restart checkpoints keep them ([`restart_part`], registered with the first carried
+//! quantity): each body's values by id, set again when the world is restored.
+//!
 //! The built-in quantities go through the same rules where they fit: mass and primaries
 //! are [`Combine::Sum`] and [`Split::ByMass`], temperature is [`Combine::MassWeighted`]
 //! (the heat Σ m C θ adds, one C) — written with the same arithmetic as before, so no
@@ -242,4 +245,50 @@ pub fn carried_totals(world: &World) -> Vec<(String, f64)> {
             acc.map(|(v, _)| (e.name.clone(), v))
         })
         .collect()
+}
+
+/// The restart part of the carried quantities (engine/restart.rs): every body's values,
+/// by id, saved with a checkpoint and set again on the restored bodies.
+pub fn restart_part() -> crate::restart::RestartPart {
+    crate::restart::RestartPart {
+        name: "carried",
+        save: save_carried,
+        load: load_carried,
+    }
+}
+
+fn save_carried(world: &World) -> Vec<u8> {
+    let columns = carried_columns(world);
+    postcard::to_allocvec(&(columns.names, columns.rows)).expect("plain data always encodes")
+}
+
+fn load_carried(world: &mut World, bytes: &[u8]) -> Result<(), String> {
+    type Saved = (Vec<String>, Vec<(u64, Vec<Option<f64>>)>);
+    let (names, rows): Saved =
+        postcard::from_bytes(bytes).map_err(|e| format!("carried quantities: {e}"))?;
+    let Some(state) = world.get_resource::<CarriedState>().cloned() else {
+        return Err("carried quantities in the snapshot, none registered in this scene".into());
+    };
+    let registered: Vec<&str> = state.names().collect();
+    if names != registered {
+        return Err(format!(
+            "carried quantities: the snapshot holds {names:?}, this scene registers {registered:?}"
+        ));
+    }
+    let mut query = world.query_filtered::<(Entity, &ParticleId), With<Particle>>();
+    let entities: std::collections::HashMap<u64, Entity> =
+        query.iter(world).map(|(e, id)| (id.0, e)).collect();
+    for (id, values) in rows {
+        let Some(&entity) = entities.get(&id) else {
+            return Err(format!(
+                "carried quantities of body {id}, which the snapshot lacks"
+            ));
+        };
+        for (entry, value) in state.entries.iter().zip(values) {
+            if let Some(v) = value {
+                (entry.set)(world, entity, v);
+            }
+        }
+    }
+    Ok(())
 }

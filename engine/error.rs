@@ -68,7 +68,7 @@ pub enum SimError {
     #[error("{path}: {message}")]
     InvalidBody { path: String, message: String },
     #[error(
-        "run stopped at step {step} (t = {time:e} s of {end:e} s): reached time.max_steps = {max_steps}"
+        "run stopped at step {step} (t = {} s of {} s): reached time.max_steps = {max_steps}", crate::readable::sci(*.time), crate::readable::sci(*.end)
     )]
     StepLimit {
         step: u64,
@@ -76,7 +76,7 @@ pub enum SimError {
         end: f64,
         max_steps: u64,
     },
-    #[error("run interrupted at step {step} (t = {time:e} s)")]
+    #[error("run interrupted at step {step} (t = {} s)", crate::readable::sci(*.time))]
     Interrupted { step: u64, time: f64 },
     #[error("the step pipeline is ill-formed: {0}")]
     Schedule(String),

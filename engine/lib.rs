@@ -37,6 +37,7 @@ pub mod hooks;
 pub mod laws;
 pub mod observables;
 pub mod params;
+pub mod readable;
 pub mod resources;
 pub mod restart;
 pub mod scene;

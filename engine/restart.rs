@@ -19,9 +19,10 @@
 //! ([`crate::schedule::SimBuilder::add_restart_part`]): bytes saved with the snapshot
 //! and a loader run after the bodies and the engine's run state are restored.
 //!
-//! What is not covered, and refused or documented: per-body quantities an extension
-//! carries (`SimBuilder::carry`) — a scene that registers one cannot take checkpoints;
-//! the scene's generator [`crate::resources::SimRng`], which the engine draws from only
+//! Per-body quantities an extension carries (`SimBuilder::carry`) are a part of their
+//! own (`carried::restart_part`): each body's values by id.
+//!
+//! What is not covered, and documented: the scene's generator [`crate::resources::SimRng`], which the engine draws from only
 //! while generating the cloud, so a resumed run, which regenerates the same cloud from
 //! the same seed before restoring, holds it in the same state (an extension that draws
 //! from it during the run is not covered).

@@ -467,9 +467,16 @@ impl SimBuilder {
         combine: crate::carried::Combine,
         split: crate::carried::Split,
     ) -> &mut Self {
+        let first = !self
+            .world
+            .contains_resource::<crate::carried::CarriedState>();
         self.world
             .get_resource_or_insert_with(crate::carried::CarriedState::default)
             .register::<C>(name, combine, split);
+        if first {
+            // Checkpoints keep every carried quantity, by body id.
+            self.add_restart_part(crate::carried::restart_part());
+        }
         self
     }
 
@@ -535,19 +542,6 @@ impl SimBuilder {
                 ));
             };
             add(&mut self.schedule);
-        }
-        if self
-            .world
-            .contains_resource::<crate::restart::Checkpoints>()
-            && self
-                .world
-                .contains_resource::<crate::carried::CarriedState>()
-        {
-            return Err(SimError::Schedule(
-                "restart checkpoints do not cover the per-body quantities an extension \
-                 carries (SimBuilder::carry): take no checkpoints in this scene"
-                    .into(),
-            ));
         }
         if let Err(e) = self.schedule.initialize(&mut self.world) {
             let message = e.to_string(self.schedule.graph(), &self.world);
@@ -871,6 +865,27 @@ impl Simulation {
         self.checkpoint = Some(snapshot);
         self.checkpoint_seconds += start.elapsed().as_secs_f64();
         Ok(())
+    }
+
+    /// A restart snapshot of now, taken as a checkpoint is: every body brought to now,
+    /// the state captured, and the world restored from that capture, so that this run
+    /// and any run resumed from the snapshot continue bit for bit alike (the Python
+    /// module pickles a simulation with it). A finished run is refused: its end is done.
+    pub fn snapshot_now(&mut self) -> Result<crate::restart::RestartSnapshot, SimError> {
+        use crate::restart::{capture, restore};
+        if self.completed {
+            let c = self.clock();
+            return Err(SimError::Schedule(format!(
+                "the run is finished (t = {:e} s at step {}): there is nothing to continue",
+                c.time, c.step
+            )));
+        }
+        let start = std::time::Instant::now();
+        self.bring_all_to_now();
+        let snapshot = capture(&mut self.world);
+        restore(&mut self.world, &snapshot).map_err(SimError::Schedule)?;
+        self.checkpoint_seconds += start.elapsed().as_secs_f64();
+        Ok(snapshot)
     }
 
     /// Wall-clock seconds spent taking checkpoints so far: bringing bodies to the

@@ -10,6 +10,10 @@ venv="${VENV:-$root/target/python-venv}"
 python3 -m venv "$venv"
 "$venv/bin/pip" install --quiet --upgrade pip
 start=$(date +%s)
+# The dev profile (opt-level 1) reuses what `cargo build` compiled for the Rust tests; a
+# user's `pip install ./python` builds the release profile (full speed). Set
+# MATURIN_PEP517_ARGS= (empty) to test the release build.
+export MATURIN_PEP517_ARGS="${MATURIN_PEP517_ARGS---profile=dev}"
 "$venv/bin/pip" install --quiet "$root/python[test]"
 echo "pip install ./python[test]: $(( $(date +%s) - start )) s"
 export AGGLO_BIN="${AGGLO_BIN:-$root/target/debug/agglo}"

@@ -5,153 +5,19 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use clap::{Parser, Subcommand};
+use clap::Parser;
 
 mod inverse;
+mod kernel;
 mod live;
 mod ranks;
 
 use agglo::prelude::*;
+use agglo::readable::sci;
 use agglo::run::signals::StopRequest;
 use agglo::run::{Resume, Run, RunEnd, RunPlan, Until};
 
-/// Particle agglomeration in thermochemically reacting granular flows.
-#[derive(Parser, Debug)]
-#[command(name = "agglo", version, about, long_about = None)]
-pub struct Cli {
-    #[command(subcommand)]
-    pub command: Command,
-}
-
-#[derive(Subcommand, Debug)]
-pub enum Command {
-    /// Run a scenario to its end time.
-    Run(Box<RunArgs>),
-    /// Check a scenario (or inverse-problem) file and print what it describes, with the
-    /// pipeline it will run and why the other systems are left out.
-    Validate {
-        /// Scenario file (JSON).
-        scenario: PathBuf,
-    },
-    /// Print the JSON Schema of the scenario format (or, with --outputs, every output's
-    /// columns and summary keys with their units).
-    Schema {
-        /// Print the outputs' columns and keys (docs/outputs.md) instead.
-        #[arg(long)]
-        outputs: bool,
-    },
-    /// Summarise an MCAP recording: channels, counts, duration, scenario, final statistics.
-    Inspect {
-        /// Recording (MCAP) written by `agglo run --out`.
-        file: PathBuf,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-    },
-    /// Write a Foxglove layout fitted to a recording's box (camera distance and near plane
-    /// from its half-width D).
-    Layout {
-        /// Recording (MCAP) written by `agglo run --out`.
-        file: PathBuf,
-        /// Where to write the layout [default: next to the recording, RUN.layout.json].
-        #[arg(long, value_name = "FILE")]
-        out: Option<PathBuf>,
-    },
-    /// Numerical studies: speed against accuracy, and where methods fail.
-    #[command(subcommand)]
-    Study(StudyCommand),
-    /// Solve an inverse problem: genetic algorithm over ensemble-averaged costs (docs/model.md §12).
-    Optimize(inverse::OptimizeArgs),
-    /// Scan one scenario field of an inverse problem's base scenario (ensemble cost per point).
-    Scan(inverse::ScanArgs),
-}
-
-#[derive(Subcommand, Debug)]
-pub enum StudyCommand {
-    /// Run one scene under a ladder of numerical settings; write accuracy.csv and charts.
-    Accuracy {
-        /// Scenario file (JSON).
-        scenario: PathBuf,
-        /// Output directory.
-        #[arg(long)]
-        out: PathBuf,
-        /// Timed repeats per setting (median wall time), ≥ 1.
-        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
-        repeats: u32,
-        /// Seeds of the reference ensemble (noise band), ≥ 1.
-        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
-        seeds: u32,
-        /// A published b_f/b0 to draw on the growth chart (e.g. 3.23 for P04).
-        #[arg(long)]
-        target_growth: Option<f64>,
-        /// Runs at once (1: timings do not share cores; 0 = one per core).
-        #[arg(long, default_value_t = 1)]
-        threads: usize,
-    },
-    /// Stability maps of the pair solve and cooling, and missed collisions against step size.
-    Stability {
-        /// Output directory.
-        #[arg(long)]
-        out: PathBuf,
-        /// Scene of the step-size study (default: the built-in study scene).
-        #[arg(long)]
-        scenario: Option<PathBuf>,
-        /// Seeds of the step-size study, ≥ 1.
-        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
-        seeds: u32,
-    },
-    /// Run one scene under each alternative reading of the papers over an ensemble of seeds;
-    /// write readings.csv, runs.csv, readings.md and a chart.
-    Readings(agglo::study::readings::ReadingsArgs),
-}
-
-#[derive(clap::Args, Debug)]
-pub struct RunArgs {
-    /// Scenario file (JSON).
-    #[arg(required_unless_present_any = ["from", "resume"], conflicts_with_all = ["from", "resume"])]
-    pub scenario: Option<PathBuf>,
-    /// Continue a stopped or killed run from the last checkpoint in its restart file
-    /// (written by a scene with `output.restart`; given the run's recording, the restart
-    /// file beside it): the final state and summary counters are those of the
-    /// uninterrupted run. The scenario is the one embedded in the file;
-    /// its output paths are ignored (pass --out / --final-state / --summary / tables);
-    /// checkpoints go on being written to the same file (or --restart).
-    #[arg(long, value_name = "RESTART", conflicts_with_all = ["from", "set", "seed"])]
-    pub resume: Option<PathBuf>,
-    /// Write restart checkpoints to this file (overrides `output.restart.path`; the
-    /// interval is `output.restart.every`, e.g. `--set output.restart.every=1e-3`).
-    #[arg(long, value_name = "FILE")]
-    pub restart: Option<PathBuf>,
-    /// Re-run the scenario embedded in this recording (MCAP); the output paths it names are
-    /// ignored (pass --out / --final-state / --summary).
-    #[arg(long, value_name = "RECORDING")]
-    pub from: Option<PathBuf>,
-    /// Record the run to this MCAP file for Foxglove (overrides `output.mcap`); a
-    /// Foxglove layout fitted to the box is written beside it (RUN.layout.json).
-    #[arg(long, value_name = "FILE")]
-    pub out: Option<PathBuf>,
-    /// Override the scenario's seed.
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Write the observables and counters as JSON here.
-    #[arg(long)]
-    pub summary: Option<PathBuf>,
-    /// Write one CSV row per body at the end here.
-    #[arg(long)]
-    pub final_state: Option<PathBuf>,
-    /// Time series, size distribution and snapshots, and when they are sampled.
-    #[command(flatten)]
-    pub tables: agglo::output::TableArgs,
-    /// Override a scenario field: PATH=VALUE, VALUE parsed as JSON (else a string), e.g.
-    /// `--set time.end=0.01 --set cloud.size_ratio=0.3` (repeatable; checked as the file is).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
-    /// No progress bar and no end-of-run report (warnings still go to stderr).
-    #[arg(long, short)]
-    pub quiet: bool,
-    #[command(flatten)]
-    pub live: live::LiveArgs,
-}
+pub use agglo::cli_args::{Cli, Command, RunArgs, StudyCommand};
 
 /// Parse arguments and run the chosen command (under `mpirun`, rank 0 runs it and the
 /// other ranks serve its simulations).
@@ -172,7 +38,21 @@ pub fn main() -> anyhow::Result<()> {
 fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow::Result<()> {
     match command {
         Command::Run(args) => run(*args),
-        Command::Validate { scenario } => validate(&scenario),
+        Command::Validate {
+            scenario,
+            set,
+            seed,
+        } => validate(&scenario, &set, seed),
+        Command::Completions { shell } => {
+            use std::io::Write;
+            std::io::stdout().write_all(&agglo::cli_args::completions(shell))?;
+            Ok(())
+        }
+        Command::Man => {
+            use std::io::Write;
+            std::io::stdout().write_all(&agglo::cli_args::man_page()?)?;
+            Ok(())
+        }
         Command::Study(study) => run_study(study, cluster),
         Command::Schema { outputs: true } => {
             print!("{}", agglo::output::schema::outputs_markdown());
@@ -197,6 +77,7 @@ fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow:
         Command::Layout { file, out } => layout(&file, out),
         Command::Optimize(args) => inverse::optimize(args, cluster),
         Command::Scan(args) => inverse::scan(args, cluster),
+        Command::Kernel(args) => kernel::kernel(*args),
     }
 }
 
@@ -204,8 +85,14 @@ fn load(path: &Path) -> anyhow::Result<Scenario> {
     Scenario::load(path).with_context(|| format!("loading scenario {}", path.display()))
 }
 
-fn validate(path: &Path) -> anyhow::Result<()> {
+fn validate(path: &Path, settings: &[String], seed: Option<u64>) -> anyhow::Result<()> {
     if is_inverse_file(path) {
+        anyhow::ensure!(
+            settings.is_empty() && seed.is_none(),
+            "{}: --set and --seed apply to scenario files; an inverse problem's base \
+             scenario is checked as it is written",
+            path.display()
+        );
         let problem = agglo::inverse::InverseProblem::load(path)
             .with_context(|| format!("loading inverse problem {}", path.display()))?;
         println!(
@@ -217,7 +104,14 @@ fn validate(path: &Path) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    let report = agglo::validate::report(&load(path)?)?;
+    let mut s = load(path)?;
+    if !settings.is_empty() {
+        s = s.with_settings(settings)?;
+    }
+    if let Some(seed) = seed {
+        s.seed = seed;
+    }
+    let report = agglo::validate::report(&s)?;
     print!("{}", report.text);
     if let Some(warning) = report.warning {
         eprintln!("{warning}");
@@ -266,14 +160,15 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         && !args.quiet
     {
         println!(
-            "resuming {name} at t = {t:e} s (step {step}, {bodies} bodies) from {}",
+            "resuming {name} at t = {} s (step {step}, {bodies} bodies) from {}",
+            sci(t),
             file.display()
         );
     }
     let outcome = run.advance(Until::End, &mut |_| ControlFlow::Continue(()));
     let end = run.finish(&outcome);
     if !args.quiet {
-        print_outputs(&end);
+        print_outputs(&end, outcome.is_ok());
         print_report(&end.summary);
     }
     if let Some(e) = end.output_error {
@@ -350,8 +245,9 @@ fn run_plan(args: &RunArgs) -> anyhow::Result<RunPlan> {
     Ok(plan)
 }
 
-/// What the run wrote: the recording and its layout, the checkpoints.
-fn print_outputs(end: &RunEnd) {
+/// What the run wrote: the recording and its layout, the checkpoints (and, when the run
+/// did not reach its end time, how to continue it).
+fn print_outputs(end: &RunEnd, finished: bool) {
     if let Some((path, rep)) = &end.recording {
         println!(
             "recorded {} snapshots ({} deletions, {} events) to {} ({:.2} MB); \
@@ -370,15 +266,18 @@ fn print_outputs(end: &RunEnd) {
         match written.count {
             0 => println!("no checkpoint reached (restart file {})", path.display()),
             count => println!(
-                "{count} checkpoints written to {} (the last at t = {:e} s, {:.2} MB; \
-                 {:.3} s taking them, {:.3} s writing them); \
-                 continue with `agglo run --resume {}`",
+                "{count} checkpoints written to {} (the last at t = {} s, {:.2} MB; \
+                 {:.3} s taking them, {:.3} s writing them); {}",
                 path.display(),
-                written.time,
+                sci(written.time),
                 written.bytes as f64 / 1e6,
                 end.sim.checkpoint_seconds(),
                 written.writing_seconds,
-                path.display()
+                if finished {
+                    "the run reached its end time: nothing to resume".to_string()
+                } else {
+                    format!("continue with `agglo run --resume {}`", path.display())
+                }
             ),
         }
     }
@@ -388,8 +287,12 @@ fn print_report(s: &Summary) {
     let g = &s.growth;
     let c = &s.counters;
     println!(
-        "{} (seed {}): t = {:.4e} s in {} steps, {:.3} s wall",
-        s.scenario, s.seed, s.time, s.steps, s.wall_seconds
+        "{} (seed {}): t = {} s in {} steps, {:.3} s wall",
+        s.scenario,
+        s.seed,
+        sci(s.time),
+        s.steps,
+        s.wall_seconds
     );
     println!(
         "  bodies {} → {}, b_f/b0 = {:.4}, n_f = {:.3}, Π04 = {:.4}, Π02 = {:.4e}",

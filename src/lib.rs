@@ -25,10 +25,12 @@
 //! All quantities are SI and `f64`.
 
 pub mod charts;
+pub mod cli_args;
 pub mod cloud_file;
 pub mod farm;
 pub mod huge_pages;
 pub mod inverse;
+pub mod kernel;
 pub mod live;
 pub mod memory;
 pub mod output;
@@ -41,8 +43,8 @@ pub mod validate;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{
-    bodies, carried, cloud, components, error, hooks, laws, observables, params, resources, scene,
-    schedule, setup, totals,
+    bodies, carried, cloud, components, error, hooks, laws, observables, params, readable,
+    resources, scene, schedule, setup, totals,
 };
 /// The built-in physics plugins (the `agglo-systems` crate).
 pub use agglo_systems as systems;

@@ -236,7 +236,15 @@ impl Scenario {
             );
         }
         match (c.radius, c.size_ratio) {
-            (Some(_), Some(_)) | (None, None) => v.issues.push(ValidationIssue {
+            (Some(_), Some(_)) => v.issues.push(ValidationIssue {
+                path: "cloud".into(),
+                message: "give exactly one of `radius` [m] or `size_ratio`, not both (over a \
+                          scenario that gives the other: --set cloud.radius=R --set \
+                          cloud.size_ratio=null, or --set cloud.size_ratio=S --set \
+                          cloud.radius=null)"
+                    .into(),
+            }),
+            (None, None) => v.issues.push(ValidationIssue {
                 path: "cloud".into(),
                 message: "give exactly one of `radius` [m] or `size_ratio`".into(),
             }),
@@ -679,16 +687,34 @@ pub fn with_settings(base: &Scenario, settings: &[String]) -> anyhow::Result<Sce
             .ok_or_else(|| anyhow::anyhow!("--set {setting}: expected PATH=VALUE"))?;
         let new: Value = serde_json::from_str(raw).unwrap_or_else(|_| Value::from(raw));
         let mut slot = &mut value;
-        for key in path.split('.') {
+        let keys: Vec<&str> = path.split('.').collect();
+        for (i, key) in keys.iter().enumerate() {
+            let above = keys[..i].join(".");
+            // A section the scenario leaves out (`output.restart`) is null here: setting
+            // a field inside it creates it. A key that is no field of its section is
+            // added too, and the scenario's own parsing names it with the fields there
+            // are (`scenario field `nosuch`: unknown field ...`): the first segment that
+            // does not exist is the one named.
+            if slot.is_null() {
+                *slot = Value::Object(Default::default());
+            }
             slot = match slot {
-                // A missing key is added; the scenario's own parsing then names it if unknown.
-                Value::Object(map) => map.entry(key).or_insert(Value::Null),
-                Value::Array(items) => key
-                    .parse::<usize>()
-                    .ok()
-                    .and_then(|k| items.get_mut(k))
-                    .ok_or_else(|| anyhow::anyhow!("--set {setting}: no element `{key}`"))?,
-                _ => anyhow::bail!("--set {setting}: the scenario has no field `{key}` there"),
+                Value::Object(map) => map.entry(*key).or_insert(Value::Null),
+                Value::Array(items) => {
+                    let len = items.len();
+                    key.parse::<usize>()
+                        .ok()
+                        .and_then(|k| items.get_mut(k))
+                        .ok_or_else(|| {
+                            anyhow::anyhow!(
+                                "--set {setting}: `{above}` is a list of {len}; no element `{key}`"
+                            )
+                        })?
+                }
+                other => anyhow::bail!(
+                    "--set {setting}: `{above}` is a value ({other}), not a section: it has \
+                     no field `{key}`"
+                ),
             };
         }
         *slot = new;

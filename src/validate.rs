@@ -4,6 +4,7 @@
 
 use anyhow::Context;
 
+use crate::readable::sci;
 use crate::scenario::Scenario;
 use crate::schedule::Pipeline;
 
@@ -22,13 +23,13 @@ pub struct ValidationReport {
 /// wrong: a scene that cannot be built, or one that cannot fit in memory.
 pub fn report(s: &Scenario) -> anyhow::Result<ValidationReport> {
     let mut text = format!(
-        "{}: valid — N = {}, b0 = {:.4e} m, volume fraction {:.4}, D = {:e} m, T = {:e} s, seed {}\n",
+        "{}: valid — N = {}, b0 = {:.4e} m, volume fraction {:.4}, D = {} m, T = {} s, seed {}\n",
         s.name,
         s.cloud.count,
         s.primary_radius(),
         s.volume_fraction(),
-        s.domain.half_width,
-        s.time.end,
+        sci(s.domain.half_width),
+        sci(s.time.end),
         s.seed
     );
     let pipeline = s.pipeline().context("building the scene's pipeline")?;
@@ -36,9 +37,9 @@ pub fn report(s: &Scenario) -> anyhow::Result<ValidationReport> {
     if let Some(restart) = &s.output.restart {
         let before_end = (s.time.end / restart.every).ceil() as u64 - 1;
         text += &format!(
-            "restart checkpoints: every {:e} s of simulated time, {before_end} before T \
+            "restart checkpoints: every {} s of simulated time, {before_end} before T \
              (agglo run --resume continues from the last one)\n",
-            restart.every
+            sci(restart.every)
         );
     }
     let memory = crate::memory::MemoryEstimate::of(s);

@@ -17,12 +17,13 @@ All quantities are SI. See docs/python.md.
 
 from ._agglo import AggloError, ScenarioError, __version__
 from .scenario import Scenario, ValidationReport
-from .simulation import Simulation
+from .simulation import Carry, Simulation
 from .table import Table
 from .ensemble import Ensemble, ensemble
 
 __all__ = [
     "AggloError",
+    "Carry",
     "Ensemble",
     "Scenario",
     "ScenarioError",

@@ -21,6 +21,33 @@ TableSpec = Union[Iterable[str], Mapping[str, Optional[Union[str, os.PathLike]]]
 DEFAULT_LIVE_ADDR = "127.0.0.1:8765"
 
 
+class Carry:
+    """A per-body quantity carried through merges and fragmentations by the engine's
+    built-in rules, in Rust (docs/extending.md, engine/carried.rs).
+
+    ``init``: one value for every body, or an array of one per body in id order.
+    ``combine``: what a merged body carries — "sum" (extensive: charge, a species'
+    mass), "mass_weighted", "max" or "min". ``split``: what each of a fragmenting body's
+    pieces carries — "by_mass" (value / pieces) or "copy". The values appear as columns of
+    ``bodies()`` and the snapshots, named by the dict key, and survive checkpoints and
+    pickling.
+    """
+
+    def __init__(self, init=0.0, combine: str = "sum", split: str = "by_mass"):
+        import numpy as np
+
+        self.init = [float(x) for x in np.atleast_1d(np.asarray(init, dtype=np.float64))]
+        self.combine = combine
+        self.split = split
+
+    def _spec(self, name: str):
+        return (name, self.combine, self.split, self.init)
+
+    def __repr__(self) -> str:
+        init = self.init[0] if len(self.init) == 1 else f"<{len(self.init)} values>"
+        return f"Carry(init={init}, combine={self.combine!r}, split={self.split!r})"
+
+
 class Simulation:
     """One run of a scenario with the built-in physics.
 
@@ -29,10 +56,23 @@ class Simulation:
     final state, live view — are chosen by the first :meth:`run`, before any step.
     """
 
-    def __init__(self, scenario: Scenario, seed: Optional[int] = None):
+    def __init__(self, scenario: Scenario, seed: Optional[int] = None, carry: Optional[Mapping[str, "Carry"]] = None):
         if not isinstance(scenario, Scenario):
             raise TypeError("Simulation(scenario): give an agglo.Scenario")
-        self._sim = _agglo.Simulation(scenario._inner, None if seed is None else int(seed))
+        self._carry = [c._spec(name) for name, c in (carry or {}).items()]
+        self._sim = _agglo.Simulation(scenario._inner, None if seed is None else int(seed), self._carry)
+        self._hooks = []
+
+    def __reduce__(self):
+        """Pickled through a restart snapshot of now (taken as a checkpoint is: every body
+        brought to now), with the hooks; the copy continues as this run does. Output
+        files are not carried (they are this run's); a hook that cannot be pickled
+        (a lambda, a closure) fails here with pickle's message."""
+        return (_unpickle, (self._sim._restart_bytes(), list(self._hooks), list(self._carry)))
+
+    def _add_hook(self, kind, function, every, every_events):
+        self._sim.add_hook(kind, function, every, every_events)
+        self._hooks.append((kind, function, every, every_events))
 
     def run(
         self,
@@ -88,6 +128,28 @@ class Simulation:
             progress=bool(progress),
             command_line=command_line,
         )
+
+    def on_impacts(self, function, *, every: Optional[float] = None, every_events: Optional[int] = None) -> None:
+        """Call ``function(batch)`` with the impacts, in batches: every ``every`` [s] of
+        simulated time or every ``every_events`` impacts, and at T. ``batch`` is a dict of
+        NumPy columns: t, id_a, id_b, mass_a, mass_b, normal_speed, tangential_speed,
+        restitution, heat, and outcome (a list of "bounce"/"bond"). Collected in Rust;
+        Python runs once per batch. Before the first step."""
+        self._add_hook("impacts", function, every, every_events)
+
+    def on_merges(self, function, *, every: Optional[float] = None, every_events: Optional[int] = None) -> None:
+        """As :meth:`on_impacts`, for merges: t, parent_a, parent_b, child, mass."""
+        self._add_hook("merges", function, every, every_events)
+
+    def on_fragments(self, function, *, every: Optional[float] = None, every_events: Optional[int] = None) -> None:
+        """As :meth:`on_impacts`, for fragmentations: t, parent, parent_mass, and children
+        (a list of id arrays)."""
+        self._add_hook("fragments", function, every, every_events)
+
+    def on_sample(self, function, *, every: float) -> None:
+        """Call ``function({"t": t, "bodies": columns})`` every ``every`` [s] of
+        simulated time (at the first step boundary at or after each multiple) and at T."""
+        self._add_hook("sample", function, every, None)
 
     def step(self, n: int = 1) -> bool:
         """Advance ``n`` steps (events, on the event core), or to T. True once at T."""
@@ -165,3 +227,13 @@ class Simulation:
     def __repr__(self) -> str:
         state = "finished" if self.finished else "running"
         return f"<agglo.Simulation {self.scenario.name!r}: t = {self.t:.6g} s, {self.steps} steps, {state}>"
+
+
+def _unpickle(state: bytes, hooks, carry) -> Simulation:
+    sim = Simulation.__new__(Simulation)
+    sim._carry = carry
+    sim._sim = _agglo.Simulation._from_restart(state, carry)
+    sim._hooks = []
+    for kind, function, every, every_events in hooks:
+        sim._add_hook(kind, function, every, every_events)
+    return sim

@@ -18,26 +18,47 @@ pub fn bodies_columns<'py>(
     carried: &CarriedColumns,
 ) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
-    let float = |f: &dyn Fn(&BodyState) -> f64| bodies.iter().map(f).collect::<Vec<f64>>();
-    out.set_item(
-        "id",
-        bodies
-            .iter()
-            .map(|b| b.id)
-            .collect::<Vec<u64>>()
-            .into_pyarray(py),
-    )?;
-    out.set_item("x", float(&|b| b.position.x).into_pyarray(py))?;
-    out.set_item("y", float(&|b| b.position.y).into_pyarray(py))?;
-    out.set_item("z", float(&|b| b.position.z).into_pyarray(py))?;
-    out.set_item("vx", float(&|b| b.velocity.x).into_pyarray(py))?;
-    out.set_item("vy", float(&|b| b.velocity.y).into_pyarray(py))?;
-    out.set_item("vz", float(&|b| b.velocity.z).into_pyarray(py))?;
-    out.set_item("mass", float(&|b| b.mass).into_pyarray(py))?;
-    out.set_item("radius", float(&|b| b.radius).into_pyarray(py))?;
-    out.set_item("temperature", float(&|b| b.temperature).into_pyarray(py))?;
-    out.set_item("hardness", float(&|b| b.hardness).into_pyarray(py))?;
-    out.set_item("primaries", float(&|b| b.primaries).into_pyarray(py))?;
+    // One pass over the bodies, filling every column (a pass per column read the 96-byte
+    // rows twelve times: 2.6× the engine's own read at N = 10⁶).
+    let n = bodies.len();
+    let mut id = Vec::with_capacity(n);
+    let mut cols: [Vec<f64>; 11] = std::array::from_fn(|_| Vec::with_capacity(n));
+    for b in bodies {
+        id.push(b.id);
+        let row = [
+            b.position.x,
+            b.position.y,
+            b.position.z,
+            b.velocity.x,
+            b.velocity.y,
+            b.velocity.z,
+            b.mass,
+            b.radius,
+            b.temperature,
+            b.hardness,
+            b.primaries,
+        ];
+        for (col, v) in cols.iter_mut().zip(row) {
+            col.push(v);
+        }
+    }
+    out.set_item("id", id.into_pyarray(py))?;
+    let names = [
+        "x",
+        "y",
+        "z",
+        "vx",
+        "vy",
+        "vz",
+        "mass",
+        "radius",
+        "temperature",
+        "hardness",
+        "primaries",
+    ];
+    for (name, col) in names.into_iter().zip(cols) {
+        out.set_item(name, col.into_pyarray(py))?;
+    }
     if carried.rows.len() == bodies.len() {
         for (k, name) in carried.names.iter().enumerate() {
             let values: Vec<f64> = carried

@@ -6,13 +6,21 @@
 //! No Rust panic crosses into Python: every entry point runs under
 //! [`errors::guard`], which turns a panic into `agglo.AggloError`.
 
+mod carry;
 mod columns;
 mod ensemble;
 mod errors;
+mod hooks;
 mod scenario;
 mod simulation;
 
 use pyo3::prelude::*;
+
+/// The allocator of the `agglo` binary (large blocks on transparent huge pages): the
+/// engine's scattered reads of large clouds then miss the TLB as rarely as they do in
+/// `agglo run`. It serves the Rust side only; Python keeps its own.
+#[global_allocator]
+static ALLOCATOR: agglo::huge_pages::HugePages = agglo::huge_pages::HugePages;
 
 #[pymodule]
 fn _agglo(m: &Bound<'_, PyModule>) -> PyResult<()> {

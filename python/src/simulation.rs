@@ -20,7 +20,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBytes, PyDict};
 
 use agglo::error::SimError;
 use agglo::output::SampleSchedule;
@@ -61,6 +61,16 @@ struct Inner {
     state: State,
     /// True once outputs were chosen (they cannot be chosen twice).
     has_outputs: bool,
+    /// The plan's outputs (kept to rebuild the run when a hook is added).
+    plan: PlanOutputs,
+    /// The Python hooks, called in batches (hooks.rs).
+    hooks: Vec<crate::hooks::Hook>,
+    /// The snapshot this simulation was unpickled from (kept to rebuild the run).
+    resume: Option<agglo::restart::RestartSnapshot>,
+    /// True once this object advanced the run (outputs and hooks come before).
+    stepped: bool,
+    /// The quantities carried from Python (carry.rs).
+    carry: Vec<crate::carry::Spec>,
     /// Directory of the tables kept in memory (read back and removed at the end).
     memory_dir: Option<PathBuf>,
     memory_tables: Vec<String>,
@@ -70,6 +80,18 @@ struct Inner {
 #[pyclass(module = "agglo._agglo", name = "Simulation")]
 pub struct Simulation {
     inner: Mutex<Inner>,
+}
+
+/// The outputs of the plan, resolved (tables kept in memory have their paths).
+#[derive(Default, Clone)]
+struct PlanOutputs {
+    tables: agglo::output::TablePaths,
+    record: Option<PathBuf>,
+    summary: Option<PathBuf>,
+    final_state: Option<PathBuf>,
+    live: Option<agglo::live::LiveOptions>,
+    progress: bool,
+    command_line: String,
 }
 
 /// The outputs asked of `run()`.
@@ -97,10 +119,6 @@ impl Outputs {
     }
 }
 
-fn start(plan: RunPlan) -> PyResult<Run> {
-    Run::start(plan, Arc::new(AtomicBool::new(false))).map_err(agglo_error)
-}
-
 impl Simulation {
     fn lock(&self) -> PyResult<MutexGuard<'_, Inner>> {
         self.inner.try_lock().map_err(|_| {
@@ -123,14 +141,13 @@ impl Inner {
         if !outputs.any() {
             return Ok(());
         }
-        let stepped = self.sim().clock().step > 0 || matches!(self.state, State::Done(_));
-        if stepped || self.has_outputs {
+        if !self.fresh() || self.has_outputs {
             return Err(scenario_error(
                 "run: outputs (tables, sampling, record, summary, final_state, live, progress) are \
                  chosen before the first step, once: make a new Simulation to write them",
             ));
         }
-        let mut plan = RunPlan::new(self.scenario.clone()).map_err(scenario_error)?;
+        let mut plan = self.plan.clone();
         plan.progress = outputs.progress;
         plan.command_line = outputs
             .command_line
@@ -176,7 +193,7 @@ impl Inner {
             plan.tables.sampling = Some(schedule);
         }
         if let Some(path) = outputs.record {
-            plan.recording = Some(path);
+            plan.record = Some(path);
         }
         if let Some(path) = outputs.summary {
             plan.summary = Some(path);
@@ -193,12 +210,49 @@ impl Inner {
             };
             plan.live = Some(options);
         }
-        // Drop the run built without outputs before building the one with them (its
-        // live server, if any, would hold the port).
-        self.state = State::Switching;
-        self.state = State::Running(Box::new(start(plan)?));
+        self.plan = plan;
         self.has_outputs = true;
+        self.rebuild()
+    }
+
+    /// Build the run anew from the scenario, the outputs and the hooks' subscriptions
+    /// (before the first step only: the run is deterministic, so nothing changes).
+    fn rebuild(&mut self) -> PyResult<()> {
+        let o = self.plan.clone();
+        let mut plan = RunPlan::new(self.scenario.clone()).map_err(scenario_error)?;
+        plan.tables = o.tables;
+        plan.progress = o.progress;
+        plan.command_line = o.command_line;
+        plan.live = o.live;
+        if o.record.is_some() {
+            plan.recording = o.record;
+        }
+        if o.summary.is_some() {
+            plan.summary = o.summary;
+        }
+        if o.final_state.is_some() {
+            plan.final_state = o.final_state;
+        }
+        plan.resume = self.resume.clone().map(|snapshot| agglo::run::Resume {
+            file: PathBuf::from("<pickle>"),
+            snapshot,
+        });
+        // Drop the run built before building the new one (its live server, if any,
+        // would hold the port).
+        self.state = State::Switching;
+        let (hooks, carry) = (&self.hooks, &self.carry);
+        let run = Run::start_with(plan, Arc::new(AtomicBool::new(false)), |builder| {
+            crate::hooks::subscribe(builder, hooks);
+            crate::carry::register(builder, carry)
+        })
+        .map_err(agglo_error)?;
+        self.state = State::Running(Box::new(run));
         Ok(())
+    }
+
+    /// True before the first step (of this object: an unpickled run may be far along).
+    fn fresh(&self) -> bool {
+        !self.stepped && matches!(self.state, State::Running(_))
     }
 
     /// Finalise the outputs with `outcome` and keep the finished simulation.
@@ -235,6 +289,20 @@ impl Inner {
     }
 }
 
+/// The carried quantities from their Python form.
+fn specs(carry: Vec<(String, String, String, Vec<f64>)>) -> PyResult<Vec<crate::carry::Spec>> {
+    let mut seen = std::collections::BTreeSet::new();
+    carry
+        .into_iter()
+        .map(|(name, combine, split, init)| {
+            if !seen.insert(name.clone()) {
+                return Err(scenario_error(format!("carry: `{name}` given twice")));
+            }
+            crate::carry::Spec::new(name, &combine, &split, init)
+        })
+        .collect()
+}
+
 /// A private directory for the tables kept in memory.
 fn memory_dir() -> PathBuf {
     use std::sync::atomic::{AtomicU64, Ordering};
@@ -247,15 +315,26 @@ fn memory_dir() -> PathBuf {
 }
 
 /// Step `run` to `until` with the GIL released, running Python's signal handlers every
-/// [`SIGNAL_CHECK`]. Returns the run's outcome and the Python error (KeyboardInterrupt)
-/// that stopped it, if one did.
-fn advance(py: Python<'_>, run: &mut Run, until: Until) -> (Result<(), SimError>, Option<PyErr>) {
+/// [`SIGNAL_CHECK`] and the hooks when due. Returns the run's outcome and the Python
+/// error (KeyboardInterrupt, a hook's exception) that stopped it, if one did.
+fn advance(
+    py: Python<'_>,
+    run: &mut Run,
+    hooks: &mut [crate::hooks::Hook],
+    until: Until,
+) -> (Result<(), SimError>, Option<PyErr>) {
     py.detach(|| {
         let mut raised: Option<PyErr> = None;
         let mut last_check = Instant::now();
         let mut steps = 0u64;
-        let outcome = run.advance(until, &mut |_| {
+        let outcome = run.advance(until, &mut |s| {
             steps += 1;
+            if !hooks.is_empty()
+                && let Err(r) = crate::hooks::observe(hooks, s, false)
+            {
+                raised = Some(r.error);
+                return ControlFlow::Break(());
+            }
             if steps.is_multiple_of(CLOCK_CHECK_STEPS) && last_check.elapsed() >= SIGNAL_CHECK {
                 last_check = Instant::now();
                 if let Err(e) = Python::attach(|py| py.check_signals()) {
@@ -265,31 +344,60 @@ fn advance(py: Python<'_>, run: &mut Run, until: Until) -> (Result<(), SimError>
             }
             ControlFlow::Continue(())
         });
+        // At T: every hook gets what it still holds.
+        if raised.is_none()
+            && outcome.is_ok()
+            && run.is_finished()
+            && !hooks.is_empty()
+            && let Err(r) = crate::hooks::observe(hooks, run.sim(), true)
+        {
+            raised = Some(r.error);
+        }
         (outcome, raised)
     })
 }
 
 #[pymethods]
 impl Simulation {
-    /// A run of `scenario` (its seed, or `seed`), with the built-in physics.
+    /// A run of `scenario` (its seed, or `seed`), with the built-in physics, carrying
+    /// the quantities of `carry`: (name, combine, split, initial values) each.
     #[new]
-    #[pyo3(signature = (scenario, seed=None))]
-    fn new(scenario: &Scenario, seed: Option<u64>) -> PyResult<Self> {
+    #[pyo3(signature = (scenario, seed=None, carry=Vec::new()))]
+    fn new(
+        scenario: &Scenario,
+        seed: Option<u64>,
+        carry: Vec<(String, String, String, Vec<f64>)>,
+    ) -> PyResult<Self> {
         guard(|| {
             let mut scenario = scenario.inner.clone();
             if let Some(seed) = seed {
                 scenario.seed = seed;
             }
+            let carry = specs(carry)?;
             let plan = RunPlan::new(scenario.clone()).map_err(scenario_error)?;
-            let run = start(plan)?;
+            // The scenario's own outputs (its `output` section), as `agglo run` takes them.
+            let outputs = PlanOutputs {
+                tables: plan.tables.clone(),
+                record: plan.recording.clone(),
+                summary: plan.summary.clone(),
+                final_state: plan.final_state.clone(),
+                ..Default::default()
+            };
+            let mut inner = Inner {
+                scenario,
+                state: State::Switching,
+                has_outputs: false,
+                plan: outputs,
+                hooks: Vec::new(),
+                resume: None,
+                stepped: false,
+                carry,
+                memory_dir: None,
+                memory_tables: Vec::new(),
+            };
+            inner.rebuild()?;
             Ok(Self {
-                inner: Mutex::new(Inner {
-                    scenario,
-                    state: State::Running(Box::new(run)),
-                    has_outputs: false,
-                    memory_dir: None,
-                    memory_tables: Vec::new(),
-                }),
+                inner: Mutex::new(inner),
             })
         })
     }
@@ -350,6 +458,73 @@ impl Simulation {
         })
     }
 
+    /// Call `function(batch)` with what the run did, in batches: `kind` is "impacts",
+    /// "merges", "fragments" (a dict of NumPy columns per batch) or "sample" (a dict with
+    /// `t` and `bodies`); `every` [s] of simulated time or `every_events` messages, and
+    /// at T. Before the first step only.
+    #[pyo3(signature = (kind, function, every=None, every_events=None))]
+    fn add_hook(
+        &self,
+        kind: &str,
+        function: Py<PyAny>,
+        every: Option<f64>,
+        every_events: Option<usize>,
+    ) -> PyResult<()> {
+        use crate::hooks::{Every, Hook, Kind};
+        guard(|| {
+            let kind = match kind {
+                "impacts" => Kind::Impacts,
+                "merges" => Kind::Merges,
+                "fragments" => Kind::Fragments,
+                "sample" => Kind::Sample,
+                other => {
+                    return Err(scenario_error(format!(
+                        "hook: kind: no `{other}` (impacts, merges, fragments, sample)"
+                    )));
+                }
+            };
+            let name = kind.name();
+            let every = match (every, every_events) {
+                (Some(dt), None) if dt.is_finite() && dt > 0.0 => Every::Time(dt),
+                (Some(dt), None) => {
+                    return Err(scenario_error(format!(
+                        "{name}: every: a time > 0 [s] (got {dt})"
+                    )));
+                }
+                (None, Some(k)) if k >= 1 && kind != Kind::Sample => Every::Count(k),
+                (None, Some(k)) if kind == Kind::Sample => {
+                    return Err(scenario_error(format!(
+                        "{name}: every_events: samples are taken every Δt: give every= (got {k})"
+                    )));
+                }
+                (None, Some(k)) => {
+                    return Err(scenario_error(format!(
+                        "{name}: every_events: ≥ 1 (got {k})"
+                    )));
+                }
+                (None, None) => {
+                    return Err(scenario_error(format!(
+                        "{name}: give every=SECONDS or every_events=K"
+                    )));
+                }
+                (Some(_), Some(_)) => {
+                    return Err(scenario_error(format!(
+                        "{name}: give every= or every_events=, not both"
+                    )));
+                }
+            };
+            let mut inner = self.lock()?;
+            if !inner.fresh() {
+                return Err(scenario_error(format!(
+                    "{name}: hooks are added before the first step"
+                )));
+            }
+            let now = inner.sim().clock().time;
+            inner.hooks.push(Hook::new(kind, every, function, now));
+            inner.rebuild()
+        })
+    }
+
     /// Finalise the outputs now (the recording says the run was stopped at this time).
     /// Nothing happens if the run is already finished.
     fn close(&self) -> PyResult<()> {
@@ -360,6 +535,65 @@ impl Simulation {
                 step: c.step,
                 time: c.time,
             }))
+        })
+    }
+
+    /// The run as restart-file bytes (`agglo::restart::encode`), taken as a checkpoint
+    /// is (every body brought to now): this run and one made from the bytes continue
+    /// alike. What `pickle` keeps.
+    fn _restart_bytes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        guard(|| {
+            let mut inner = self.lock()?;
+            let scenario = inner.scenario.clone();
+            let State::Running(run) = &mut inner.state else {
+                return Err(AggloError::new_err(
+                    "a finished simulation is not pickled: keep its results (bodies(), \
+                     summary(), the tables) instead",
+                ));
+            };
+            let snapshot = run.snapshot_now().map_err(|e| agglo_error(e.into()))?;
+            Ok(PyBytes::new(
+                py,
+                &agglo::restart::encode(&scenario, &snapshot),
+            ))
+        })
+    }
+
+    /// A simulation continuing from restart-file bytes (`_restart_bytes`, or a restart
+    /// file's content). Its scenario's output files are not written (they are the
+    /// original run's); choose outputs with `run()`.
+    #[staticmethod]
+    #[pyo3(signature = (bytes, carry=Vec::new()))]
+    fn _from_restart(
+        bytes: &[u8],
+        carry: Vec<(String, String, String, Vec<f64>)>,
+    ) -> PyResult<Self> {
+        guard(|| {
+            let (mut scenario, snapshot) =
+                agglo::restart::decode(std::path::Path::new("<pickle>"), bytes)
+                    .map_err(scenario_error)?;
+            let o = &mut scenario.output;
+            (o.summary, o.final_state, o.mcap, o.restart) = (None, None, None, None);
+            (o.series, o.sizes, o.snapshots, o.collisions) = (None, None, None, None);
+            let mut inner = Inner {
+                scenario,
+                state: State::Switching,
+                has_outputs: false,
+                plan: PlanOutputs::default(),
+                hooks: Vec::new(),
+                resume: Some(snapshot),
+                stepped: false,
+                carry: specs(carry)?,
+                memory_dir: None,
+                memory_tables: Vec::new(),
+            };
+            inner.plan.tables = RunPlan::new(inner.scenario.clone())
+                .map_err(scenario_error)?
+                .tables;
+            inner.rebuild()?;
+            Ok(Self {
+                inner: Mutex::new(inner),
+            })
         })
     }
 
@@ -465,10 +699,12 @@ impl Simulation {
 
 impl Simulation {
     fn advance_locked(&self, py: Python<'_>, inner: &mut Inner, until: Until) -> PyResult<bool> {
-        let State::Running(run) = &mut inner.state else {
+        inner.stepped = true;
+        let Inner { state, hooks, .. } = inner;
+        let State::Running(run) = state else {
             return Ok(true);
         };
-        let (outcome, raised) = advance(py, run, until);
+        let (outcome, raised) = advance(py, run, hooks, until);
         if let Some(err) = raised {
             // Ctrl-C (or another signal handler's exception): the run stays valid.
             return Err(err);

@@ -130,6 +130,10 @@ def test_ctrl_c_raises_keyboard_interrupt_and_the_run_continues_to_the_same_byte
     assert raised_at - interrupted_at[0] < 1.0
     assert sim.run()
     assert (tmp_path / "ref.csv").read_bytes() == (tmp_path / "cut.csv").read_bytes()
+    # Python's own Ctrl-C handling is untouched after the run returns.
+    with pytest.raises(KeyboardInterrupt):
+        _thread.interrupt_main()
+        time.sleep(1.0)
     np.testing.assert_array_equal(reference.bodies()["x"], sim.bodies()["x"])
 
 
@@ -195,3 +199,113 @@ def test_errors_name_the_field_and_no_panic_crosses(scenarios, tmp_path):
         agglo.Simulation(quick(scenarios)).run(record=tmp_path / "no" / "such" / "dir.mcap")
     with pytest.raises(agglo.ScenarioError, match="seeds"):
         agglo.ensemble(quick(scenarios), seeds=[])
+
+
+def test_hooks_get_every_impact_merge_and_sample_in_batches(scenarios, tmp_path):
+    sim = agglo.Simulation(quick(scenarios), seed=5)
+    impacts, merges, samples, calls = [], [], [], []
+
+    def on_impacts(batch):
+        calls.append(len(batch["t"]))
+        impacts.append(pd.DataFrame(batch))
+
+    sim.on_impacts(on_impacts, every_events=100)
+    sim.on_merges(lambda b: merges.append(len(b["child"])), every=2e-4)
+    sim.on_sample(lambda s: samples.append((s["t"], len(s["bodies"]["id"]))), every=2.5e-4)
+    sim.run(tables={"collisions": tmp_path / "c.csv", "series": None})
+    log = pd.read_csv(tmp_path / "c.csv")
+    got = pd.concat(impacts, ignore_index=True)
+    # Every impact of the collision log, in order, in batches of 100 (the last one shorter).
+    assert len(got) == len(log) == sim.counters["impacts"]
+    assert all(n == 100 for n in calls[:-1]) and 0 < calls[-1] <= 100
+    np.testing.assert_array_equal(got["t"], log["t"])
+    np.testing.assert_array_equal(got["id_a"], log["id_a"])
+    assert sum(merges) == sim.series()["merges"][-1] > 0
+    # At the first step boundary at or after 2.5, 5, 7.5 and 10 (= T) × 1e-4 s, once each.
+    assert len(samples) == 4, samples
+    for k, (t, n) in enumerate(samples, start=1):
+        assert k * 2.5e-4 <= t < k * 2.5e-4 + 2e-5 and n > 0, (k, t)
+    assert samples[-1][0] == sim.t
+    # Hooks read only: the run is the run without them.
+    plain = agglo.Simulation(quick(scenarios), seed=5)
+    plain.run()
+    np.testing.assert_array_equal(plain.bodies()["x"], sim.bodies()["x"])
+
+
+def test_an_exception_in_a_hook_stops_the_run_naming_the_step_and_time(scenarios):
+    sim = agglo.Simulation(quick(scenarios), seed=5)
+
+    def fail(batch):
+        raise ZeroDivisionError("from the hook")
+
+    sim.on_impacts(fail, every_events=50)
+    with pytest.raises(agglo.AggloError, match=r"on_impacts raised at step \d+, t = .* s: from the hook") as e:
+        sim.run()
+    assert isinstance(e.value.__cause__, ZeroDivisionError)
+    assert not sim.finished and sim.t > 0
+    with pytest.raises(agglo.ScenarioError, match="before the first step"):
+        sim.on_merges(print, every=1e-4)
+    with pytest.raises(agglo.ScenarioError, match="every_events"):
+        agglo.Simulation(quick(scenarios)).on_impacts(print, every_events=0)
+
+
+def record_impacts(batch):
+    """A module-level hook, so that it pickles."""
+    record_impacts.seen += len(batch["t"])
+
+
+record_impacts.seen = 0
+
+
+def test_a_pickled_simulation_continues_as_the_original(scenarios):
+    import pickle
+
+    sim = agglo.Simulation(quick(scenarios), seed=8)
+    sim.on_impacts(record_impacts, every_events=50)
+    sim.step(150)
+    impacts_before = sim.counters["impacts"]
+    copy = pickle.loads(pickle.dumps(sim))
+    assert copy.t == sim.t and copy.steps == sim.steps
+    assert sim.run() and copy.run()
+    for column in sim.bodies():
+        np.testing.assert_array_equal(sim.bodies()[column], copy.bodies()[column], err_msg=column)
+    a, b = sim.summary(), copy.summary()
+    assert a["counters"] == b["counters"] and a["growth"] == b["growth"]
+    # Both carried the hook: it saw the impacts after the copy twice, and the first 150
+    # steps' once (a batch still pending at the copy is the original's alone).
+    total = sim.counters["impacts"]
+    assert record_impacts.seen == total + (total - impacts_before)
+    with pytest.raises(agglo.AggloError, match="finished"):
+        pickle.dumps(sim)
+    unpicklable = agglo.Simulation(quick(scenarios))
+    unpicklable.on_impacts(lambda b: None, every_events=10)
+    with pytest.raises(Exception, match="lambda|pickle"):
+        pickle.dumps(unpicklable)
+
+
+def test_carried_quantities_follow_merges_and_fragments_in_rust(scenarios):
+    import pickle
+
+    s = quick(scenarios)
+    n = s.cloud.count
+    charge = np.linspace(-1e-12, 1e-12, n) + 3e-13  # one per body, id order; total 300 × 3e-13
+    sim = agglo.Simulation(s, seed=2, carry={
+        "charge": agglo.Carry(init=charge, combine="sum", split="by_mass"),
+        "hottest": agglo.Carry(init=0.0, combine="max", split="copy"),
+    })
+    start = sim.bodies()
+    np.testing.assert_array_equal(start["charge"], charge)
+    sim.step(200)
+    copy = pickle.loads(pickle.dumps(sim))
+    assert sim.run() and copy.run()
+    end = sim.bodies()
+    assert len(end) < n, "bodies merged"
+    # Extensive, summed at merges and split by mass: the total is kept (to rounding of
+    # a few hundred additions of values ~1e-12).
+    assert abs(end["charge"].sum() - charge.sum()) < 1e-9 * np.abs(charge).sum()
+    assert np.all(end["hottest"] == 0.0)
+    np.testing.assert_array_equal(end["charge"], copy.bodies()["charge"])
+    with pytest.raises(agglo.ScenarioError, match="combine: no `avg`"):
+        agglo.Simulation(s, carry={"q": agglo.Carry(combine="avg")})
+    with pytest.raises(agglo.AggloError, match="one value or one per body"):
+        agglo.Simulation(s, carry={"q": agglo.Carry(init=[1.0, 2.0])})

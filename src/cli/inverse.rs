@@ -1,6 +1,6 @@
 //! `agglo optimize` and `agglo scan`: thin handlers over [`agglo::inverse`].
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
@@ -13,59 +13,7 @@ use agglo::inverse::{self, Event, InverseProblem, Options};
 
 use super::ranks;
 
-#[derive(clap::Args, Debug)]
-pub struct OptimizeArgs {
-    /// Inverse-problem file (JSON).
-    pub problem: PathBuf,
-    /// Output directory (generations.csv, best.json, best_scenario.json, charts, checkpoint.json).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// Continue the run checkpointed in --out.
-    #[arg(long)]
-    pub resume: bool,
-    /// Worker threads (default: one per core; under mpirun, one per rank).
-    #[arg(long, default_value_t = 0)]
-    pub threads: usize,
-    /// No progress display and no report.
-    #[arg(long, short)]
-    pub quiet: bool,
-    /// Stop after this many generations (the run can be continued with --resume).
-    #[arg(long, hide = true)]
-    pub stop_after: Option<usize>,
-    /// Write the compute time of every sample here (CSV: generation, string, sample,
-    /// seconds, used): where the time goes, and what a cluster would make of it.
-    #[arg(long, value_name = "FILE")]
-    pub sample_times: Option<PathBuf>,
-    #[command(flatten)]
-    pub live: super::live::LiveInverseArgs,
-}
-
-#[derive(clap::Args, Debug)]
-pub struct ScanArgs {
-    /// Inverse-problem file (JSON): its base scenario, end-time rule, cost and ensemble rule are used.
-    pub problem: PathBuf,
-    /// Scenario field to scan (dotted path, e.g. `box.half_width`).
-    #[arg(long)]
-    pub gene: String,
-    #[arg(long)]
-    pub from: f64,
-    #[arg(long)]
-    pub to: f64,
-    /// Number of points (≥ 2).
-    #[arg(long, default_value_t = 9)]
-    pub points: usize,
-    /// Space the points logarithmically.
-    #[arg(long)]
-    pub log: bool,
-    /// Output directory (scan.csv, scan.png/svg).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// Worker threads (default: one per core; under mpirun, one per rank).
-    #[arg(long, default_value_t = 0)]
-    pub threads: usize,
-    #[arg(long, short)]
-    pub quiet: bool,
-}
+pub use agglo::cli_args::{OptimizeArgs, ScanArgs};
 
 fn load(path: &Path) -> anyhow::Result<InverseProblem> {
     InverseProblem::load(path)

@@ -7,39 +7,9 @@ use std::sync::atomic::AtomicBool;
 use anyhow::Context;
 
 use agglo::live::inverse::LiveInverse;
-use agglo::live::{DEFAULT_ADDR, LiveOptions, Server, check_options, parse_addr};
+use agglo::live::{LiveOptions, Server, check_options, parse_addr};
 
-/// The live flags of `agglo run`.
-#[derive(clap::Args, Debug, Clone)]
-pub struct LiveArgs {
-    /// Serve the run live over the Foxglove WebSocket protocol on ADDR (HOST:PORT,
-    /// default 127.0.0.1:8765): in Foxglove, open a connection → Foxglove WebSocket →
-    /// ws://ADDR. Same channels as a recording (--out); the results are unchanged.
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_ADDR)]
-    pub live: Option<String>,
-    /// With --live: hold the start until a client subscribes.
-    #[arg(long, requires = "live")]
-    pub live_wait: bool,
-    /// With --live: frames per second of wall-clock time, at most (0.001 ≤ HZ ≤ 1000).
-    #[arg(long, value_name = "HZ", default_value_t = 10.0, requires = "live")]
-    pub live_rate: f64,
-    /// With --live: bodies drawn per frame, about, at most (a deterministic subset by
-    /// id when the cloud is larger; /stats always covers every body).
-    #[arg(long, value_name = "N", default_value_t = 10_000, requires = "live")]
-    pub live_bodies: usize,
-}
-
-/// The live flags of `agglo optimize`.
-#[derive(clap::Args, Debug, Clone)]
-pub struct LiveInverseArgs {
-    /// Serve each generation live over the Foxglove WebSocket protocol on ADDR
-    /// (HOST:PORT, default 127.0.0.1:8765); the layout is written as DIR/live.layout.json.
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_ADDR)]
-    pub live: Option<String>,
-    /// With --live: hold the start until a client subscribes.
-    #[arg(long, requires = "live")]
-    pub live_wait: bool,
-}
+pub use agglo::cli_args::{LiveArgs, LiveInverseArgs};
 
 /// Flags of this module and whether each takes a value (the recording's command line
 /// leaves them out: they do not change the run, so a run with and without them records

@@ -5,7 +5,9 @@
 //!
 //! - [`Server`]: the address is checked and bound before any work starts
 //!   ([`Server::bind`]); an address that cannot be bound (in use, not an address, no
-//!   permission) is an error naming it.
+//!   permission) is an error naming it. Clients offering the protocol's old name
+//!   (`foxglove.websocket.v1`) connect as well as those offering the new one
+//!   ([`handshake`]).
 //! - [`run::LiveRun`]: a simulation, with the recording's channels, schemas and entity
 //!   layout (`/particles`, `/box`, `/stats`, `/events`; messages built by
 //!   [`crate::record::messages`]), so the fitted layout of a recording works live.
@@ -31,6 +33,7 @@
 //! the shown bodies stay shown. The scene says so (a text entity in `/particles`), and
 //! `/stats` is always computed over every body.
 
+pub mod handshake;
 pub mod inverse;
 pub mod run;
 
@@ -104,6 +107,8 @@ pub struct Server {
     _context: Arc<Context>,
     channels: Vec<Arc<RawChannel>>,
     handle: Option<foxglove::WebSocketServerHandle>,
+    /// Listens on `addr` and passes connections through to the crate's server.
+    shim: Option<handshake::Shim>,
     addr: SocketAddr,
 }
 
@@ -132,22 +137,28 @@ impl Server {
                     .with_context(|| format!("creating live channel {topic}"))
             })
             .collect::<anyhow::Result<Vec<_>>>()?;
-        let host = match addr {
-            SocketAddr::V4(a) => a.ip().to_string(),
-            SocketAddr::V6(a) => format!("[{}]", a.ip()),
-        };
+        // The user's address is the shim's; the crate's server listens on a loopback
+        // port behind it (module `handshake`: it accepts both names of the protocol).
+        let listener = std::net::TcpListener::bind(addr).map_err(|e| bind_error(addr, &e))?;
+        let bound = listener.local_addr().map_err(|e| bind_error(addr, &e))?;
         let handle = WebSocketServer::new()
             .name(name)
-            .bind(host, addr.port())
+            .bind("127.0.0.1", 0)
             .context(&context)
             .message_backlog_size(CLIENT_BACKLOG)
             .start_blocking()
-            .map_err(|e| bind_error(addr, e))?;
-        let bound = SocketAddr::new(addr.ip(), handle.port());
+            .map_err(|e| match e {
+                FoxgloveError::Bind(io) => bind_error(addr, &io),
+                e => anyhow::anyhow!("--live {addr}: cannot start the server: {e}"),
+            })?;
+        let upstream = SocketAddr::from(([127, 0, 0, 1], handle.port()));
+        let shim = handshake::Shim::start(listener, upstream)
+            .with_context(|| format!("--live {addr}: cannot start the server"))?;
         Ok(Self {
             _context: context,
             channels,
             handle: Some(handle),
+            shim: Some(shim),
             addr: bound,
         })
     }
@@ -201,6 +212,9 @@ impl Server {
         if self.clients() > 0 {
             std::thread::sleep(LINGER);
         }
+        if let Some(shim) = self.shim.take() {
+            shim.stop();
+        }
         if let Some(handle) = self.handle.take() {
             // Closing frames go out in the background (dropping the shutdown handle
             // instead would abort the client tasks at once); the process exit ends them.
@@ -210,10 +224,7 @@ impl Server {
 }
 
 /// The error of an address that cannot be bound, naming it and saying what to do.
-fn bind_error(addr: SocketAddr, e: FoxgloveError) -> anyhow::Error {
-    let FoxgloveError::Bind(io) = &e else {
-        return anyhow::anyhow!("--live {addr}: cannot start the server: {e}");
-    };
+fn bind_error(addr: SocketAddr, io: &std::io::Error) -> anyhow::Error {
     let why = match io.kind() {
         std::io::ErrorKind::AddrInUse => {
             "the address is already in use (another `agglo --live`? pick another port)"

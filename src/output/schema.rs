@@ -282,7 +282,50 @@ pub fn outputs_markdown() -> String {
     for k in SUMMARY_KEYS {
         s += &format!("| `{}` | {} | {} |\n", k.name, k.unit, cell(k.doc));
     }
+    s += &kernel_markdown();
     s += CONTINUING;
+    s
+}
+
+/// The `agglo kernel` file: every array of [`crate::kernel::KERNEL_ARRAYS`] with its
+/// shape and units, and the long table's columns.
+fn kernel_markdown() -> String {
+    use crate::kernel::{CONVENTION, KERNEL_ARRAYS, write::LONG_COLUMNS};
+    let mut s = String::from(
+        "\n## `agglo kernel --out F.npz`: measured collision kernels, one array each\n\n\
+         NumPy `.npz` (`numpy.load(F)`; no pickles): Nm mass classes of `--bins`, 3 outcomes \
+         (bond, bounce, fragment), R runs (seeds). Units by `--units` (SI, or cgs as DustPy \
+         takes them), stored in the file as `units` and, per array, in `array_units`. \
+         The convention, also stored: ",
+    );
+    s += CONVENTION;
+    s += " `python/agglo/kernel.py` loads it into DustPy's arrays and an OpenFOAM table.\n\n\
+          | array | shape | unit (SI / cgs) | meaning |\n|---|---|---|---|\n";
+    for a in KERNEL_ARRAYS {
+        let (si, _) = a.dim.unit(false);
+        let (cgs, _) = a.dim.unit(true);
+        let unit = if si == cgs {
+            si.to_string()
+        } else {
+            format!("{si} / {cgs}")
+        };
+        s += &format!(
+            "| `{}` | {} | {unit} | {} |\n",
+            a.name,
+            a.shape,
+            cell(a.doc)
+        );
+    }
+    s += "\n## `agglo kernel --parquet F`: the same arrays, one row per element with a value (NaN left out)\n\n\
+          | column | type | unit | meaning |\n|---|---|---|---|\n";
+    for c in LONG_COLUMNS {
+        let kind = match c.kind {
+            Kind::Float => "float",
+            Kind::Int | Kind::Id => "integer",
+            Kind::Text => "text",
+        };
+        s += &format!("| `{}` | {kind} | {} | {} |\n", c.name, c.unit, cell(c.doc));
+    }
     s
 }
 

@@ -306,6 +306,12 @@ impl Run {
         &self.sim
     }
 
+    /// A restart snapshot of now ([`Simulation::snapshot_now`]): this run and one
+    /// resumed from it continue alike.
+    pub fn snapshot_now(&mut self) -> Result<RestartSnapshot, SimError> {
+        self.sim.snapshot_now()
+    }
+
     /// The scenario being run.
     pub fn scenario(&self) -> &Scenario {
         &self.scenario

@@ -92,7 +92,8 @@ pub fn line(t: f64, end: f64, rate: f64, unit: &str, bodies: usize, elapsed: f64
     } else {
         "?".into()
     };
-    format!("t = {t:.3e} of {end:.3e} s · {rate:.3e} {unit}/s · {bodies} bodies · ETA {eta}")
+    let end = crate::readable::sci(end);
+    format!("t = {t:.3e} of {end} s · {rate:.3e} {unit}/s · {bodies} bodies · ETA {eta}")
 }
 
 /// Seconds as `1h02m03s`, `2m03s` or `3.4s`.
@@ -118,7 +119,7 @@ mod tests {
         let text = line(0.25, 1.0, 1.5e5, "events", 42, 10.0);
         assert_eq!(
             text,
-            "t = 2.500e-1 of 1.000e0 s · 1.500e5 events/s · 42 bodies · ETA 30.0s"
+            "t = 2.500e-1 of 1e0 s · 1.500e5 events/s · 42 bodies · ETA 30.0s"
         );
         assert_eq!(format_duration(3725.0), "1h02m05s");
         assert_eq!(format_duration(125.0), "2m05s");

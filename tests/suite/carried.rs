@@ -187,3 +187,56 @@ fn snapshots_carry_the_registered_quantities_as_columns() {
         assert_eq!(final_charges, expected, "{ext}");
     }
 }
+
+#[test]
+fn carried_quantities_survive_checkpoints_and_resume_bit_for_bit() {
+    use agglo::restart::RestartSnapshot;
+    use std::ops::ControlFlow;
+    for core in ["events", "stepped"] {
+        let text = std::fs::read_to_string(Path::new("scenarios/quick_demo.json")).unwrap();
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        crate::common::merge(
+            &mut v,
+            json!({ "time": { "core": core }, "output": { "restart": { "every": 1e-3 } } }),
+        );
+        let s = Scenario::from_value(v).unwrap();
+        let build = || {
+            let mut builder = Simulation::builder(&s).unwrap();
+            builder.add_default_plugins().add_plugin(&Carry);
+            builder.build().unwrap()
+        };
+        let mut sim = build();
+        let mut snapshots = Vec::new();
+        sim.run_with(|s| {
+            if let Some(snapshot) = s.restart_snapshot() {
+                snapshots.push(snapshot.encode());
+            }
+            ControlFlow::Continue(())
+        })
+        .unwrap();
+        assert_eq!(snapshots.len(), 3, "{core}: checkpoints at 1, 2, 3 ms");
+        let end = (format!("{:?}", sim.bodies()), sim.carried());
+        assert!(
+            end.1
+                .rows
+                .iter()
+                .all(|(_, v)| v.iter().all(Option::is_some))
+        );
+        for (k, bytes) in snapshots.iter().enumerate() {
+            let mut resumed = build();
+            resumed
+                .resume(&RestartSnapshot::decode(bytes).unwrap())
+                .unwrap();
+            resumed.run().unwrap();
+            assert!(
+                format!("{:?}", resumed.bodies()) == end.0,
+                "{core}: resumed from snapshot {k}, the bodies differ"
+            );
+            assert_eq!(
+                resumed.carried(),
+                end.1,
+                "{core}: snapshot {k}, carried values"
+            );
+        }
+    }
+}

@@ -20,9 +20,11 @@ use tungstenite::{Message, WebSocket};
 
 const BIN: &str = env!("CARGO_BIN_EXE_agglo");
 
-/// The subprotocol of the `foxglove` crate's server (0.30; `foxglove.websocket.v1` was
-/// the name of the same protocol before it).
+/// The subprotocol of the `foxglove` crate's server (0.30).
 const SUBPROTOCOL: &str = "foxglove.sdk.v1";
+/// The same protocol's name before the SDK, the only one Foxglove Studio 1.x and
+/// Lichtblick up to 1.21 offer.
+const OLD_SUBPROTOCOL: &str = "foxglove.websocket.v1";
 
 /// Longest wait for anything (start-up, a message, the end of a run).
 const PATIENCE: Duration = Duration::from_secs(60);
@@ -47,6 +49,17 @@ type Ws = WebSocket<TcpStream>;
 
 /// Connect as Foxglove does, retrying while the server starts.
 fn connect(port: u16, child: &mut Child) -> Ws {
+    let (ws, answered) = connect_offering(port, child, SUBPROTOCOL);
+    assert_eq!(
+        answered, SUBPROTOCOL,
+        "the server negotiates Foxglove's subprotocol"
+    );
+    ws
+}
+
+/// Connect offering the subprotocol names `offered` (comma-separated), retrying while
+/// the server starts; the socket and the name the server answered.
+fn connect_offering(port: u16, child: &mut Child, offered: &str) -> (Ws, String) {
     let start = Instant::now();
     loop {
         if let Ok(stream) = TcpStream::connect(("127.0.0.1", port)) {
@@ -55,17 +68,17 @@ fn connect(port: u16, child: &mut Child) -> Ws {
                 .unwrap();
             request
                 .headers_mut()
-                .insert("Sec-WebSocket-Protocol", SUBPROTOCOL.parse().unwrap());
-            let (ws, response) = tungstenite::client(request, stream).expect("handshake");
-            assert_eq!(
-                response.headers()["sec-websocket-protocol"],
-                SUBPROTOCOL,
-                "the server negotiates Foxglove's subprotocol"
-            );
+                .insert("Sec-WebSocket-Protocol", offered.parse().unwrap());
+            let (ws, response) = tungstenite::client(request, stream)
+                .unwrap_or_else(|e| panic!("handshake offering {offered}: {e}"));
+            let answered = response.headers()["sec-websocket-protocol"]
+                .to_str()
+                .unwrap()
+                .to_string();
             ws.get_ref()
                 .set_read_timeout(Some(Duration::from_millis(500)))
                 .unwrap();
-            return ws;
+            return (ws, answered);
         }
         if let Some(status) = child.try_wait().unwrap() {
             panic!("agglo exited ({status}) before serving");
@@ -302,6 +315,77 @@ fn a_live_run_serves_the_recordings_channels_and_changes_nothing() {
         particles.last().unwrap().entities.len() as u64,
         last["bodies"].as_u64().unwrap()
     );
+}
+
+/// Every Foxglove client connects: one offering the protocol's old name
+/// (`foxglove.websocket.v1`, Studio 1.x, Lichtblick ≤ 1.21), one offering the new, and one
+/// offering both; each hears a name it offered and receives the run's frames.
+#[test]
+fn clients_offering_either_name_of_the_protocol_connect() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let addr = format!("127.0.0.1:{port}");
+    let mut child = run_in(dir.path(), &["--live", &addr, "--live-wait"]);
+    let both = format!("{OLD_SUBPROTOCOL}, {SUBPROTOCOL}");
+    let mut clients = Vec::new();
+    for (offered, expected) in [
+        (OLD_SUBPROTOCOL, OLD_SUBPROTOCOL),
+        (SUBPROTOCOL, SUBPROTOCOL),
+        // The crate's server picks among the offered names; the new one here.
+        (both.as_str(), SUBPROTOCOL),
+    ] {
+        let (mut ws, answered) = connect_offering(port, &mut child, offered);
+        assert_eq!(answered, expected, "offering {offered}");
+        let channels = advertised(&mut ws, &["/stats"]);
+        clients.push((offered, ws, channels));
+    }
+    // Only once all three are subscribed does the run (held by --live-wait) matter:
+    // the first subscription starts it, so every client gets at least the last frame.
+    for (_, ws, channels) in &mut clients {
+        subscribe(ws, channels, &["/stats"]);
+    }
+    for (offered, ws, _) in &mut clients {
+        let got = collect(ws, &mut child);
+        let last: Value = serde_json::from_slice(&got.last().expect("frames").2)
+            .unwrap_or_else(|e| panic!("offering {offered}: /stats is JSON: {e}"));
+        assert!(last["bodies"].as_u64().unwrap() >= 1, "offering {offered}");
+    }
+    let out = wait(child);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// A client offering no name of the protocol is still refused (HTTP 400), as the
+/// crate's server refuses it.
+#[test]
+fn a_client_offering_another_protocol_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let addr = format!("127.0.0.1:{port}");
+    let mut child = run_in(dir.path(), &["--live", &addr, "--live-wait"]);
+    let start = Instant::now();
+    let refused = loop {
+        if let Ok(stream) = TcpStream::connect(("127.0.0.1", port)) {
+            let mut request = format!("ws://127.0.0.1:{port}")
+                .into_client_request()
+                .unwrap();
+            request
+                .headers_mut()
+                .insert("Sec-WebSocket-Protocol", "chat.v1".parse().unwrap());
+            break tungstenite::client(request, stream).unwrap_err();
+        }
+        assert!(start.elapsed() < PATIENCE, "no server on port {port}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(
+        matches!(&refused, tungstenite::HandshakeError::Failure(tungstenite::Error::Http(r)) if r.status() == 400),
+        "{refused:?}"
+    );
+    let _ = child.kill();
+    let _ = child.wait();
 }
 
 #[test]

@@ -391,39 +391,6 @@ fn a_flipped_digit_in_a_restart_file_is_refused_naming_the_file() {
 }
 
 #[test]
-fn a_scene_carrying_extension_quantities_refuses_checkpoints() {
-    use agglo::bevy_ecs::prelude::*;
-    use agglo::carried::{Carried, Combine, Split};
-    #[derive(Component, Clone, Copy)]
-    struct Charge(f64);
-    impl Carried for Charge {
-        fn value(&self) -> f64 {
-            self.0
-        }
-        fn from_value(value: f64) -> Self {
-            Charge(value)
-        }
-    }
-    let build = |restart: Value| {
-        let scenario = Scenario::from_value(quick_demo(restart)).unwrap();
-        let mut builder = Simulation::builder(&scenario).unwrap();
-        builder
-            .add_default_plugins()
-            .carry::<Charge>("charge", Combine::Sum, Split::ByMass);
-        builder.build().map(|_| ())
-    };
-    let error = build(json!({ "output": { "restart": { "every": 1e-3 } } }))
-        .unwrap_err()
-        .to_string();
-    assert!(
-        error.contains("restart checkpoints do not cover") && error.contains("carry"),
-        "{error}"
-    );
-    // Without checkpoints the same scene builds.
-    build(json!({})).unwrap();
-}
-
-#[test]
 fn sigint_then_resume_ends_as_the_uninterrupted_run_event_core() {
     signalled_and_resumed(libc::SIGINT, "events", true);
 }

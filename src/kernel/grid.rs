@@ -1,0 +1,368 @@
+//! The consumer's mass grid (`agglo kernel --bins GRID`): the classes impacts and
+//! exposure are binned by (docs/outputs.md, "agglo kernel").
+//!
+//! Three ways to give it, all turned into strictly increasing mass edges [kg], class k
+//! being [e_k, e_{k+1}):
+//!
+//! - `edges:m0,m1,...` — explicit edges in kg;
+//! - `dustpy:mmin,mmax,bins_per_decade` — DustPy's own grid, in grams as DustPy takes
+//!   it (`sim.ini.grid.mmin`, `mmax`, `Nmbpd`): DustPy builds
+//!   Nm = ⌈log10(mmax/mmin)⌉·Nmbpd + 1 points m_k = logspace(mmin, mmax, Nm)
+//!   (`Simulation._makemassgrid`), and class k is the one of point `sim.grid.m[k]`: its
+//!   edges are the geometric midpoints between neighbouring points, the outer two half a
+//!   spacing (in log) beyond the end points;
+//! - `openfoam:d0,d1,...` — an OpenFOAM population-balance size-group list, the groups'
+//!   sphere-equivalent diameters `dSph` [m], increasing; the masses ρπd³/6 use the
+//!   scenario's density and the edges are their geometric midpoints, as for DustPy.
+//!
+//! A grid is checked when parsed (sorted, finite, positive, at least one class) and
+//! against the bodies of a run when the run starts ([`MassGrid::check_covers`]): a body
+//! outside the grid would silently drop out of the exposure, so it is refused instead.
+
+use serde::{Deserialize, Serialize};
+
+/// Why a grid was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GridError {
+    #[error(
+        "--bins: expected `edges:m0,m1,...`, `dustpy:mmin,mmax,bins_per_decade` or `openfoam:d0,d1,...` (got `{0}`)"
+    )]
+    Kind(String),
+    #[error("--bins {kind}: value {index} `{text}` is not a number")]
+    NotANumber {
+        kind: &'static str,
+        index: usize,
+        text: String,
+    },
+    #[error("--bins {kind}: value {index} is {value:e}: allowed a finite number > 0")]
+    NotPositive {
+        kind: &'static str,
+        index: usize,
+        value: f64,
+    },
+    #[error(
+        "--bins {kind}: value {index} ({value:e}) is not above value {prev_index} ({prev:e}): the values must increase strictly (sorted, no repeats)"
+    )]
+    Unsorted {
+        kind: &'static str,
+        index: usize,
+        value: f64,
+        prev_index: usize,
+        prev: f64,
+    },
+    #[error("--bins {kind}: zero bins: needs at least {needed} values (got {got})")]
+    TooFew {
+        kind: &'static str,
+        needed: usize,
+        got: usize,
+    },
+    #[error(
+        "--bins: {classes} classes: allowed at most {MAX_CLASSES} (the file holds Nm³ fragment mass fractions)"
+    )]
+    TooMany { classes: usize },
+    #[error("--bins dustpy: {field}: allowed {allowed} (got {got})")]
+    DustPy {
+        field: &'static str,
+        allowed: &'static str,
+        got: String,
+    },
+    #[error(
+        "--bins: the grid [{first:e}, {last:e}) kg misses {missed} of the {bodies} bodies at t = {time:e} s (lightest {lightest:e} kg, heaviest {heaviest:e} kg); widen the grid"
+    )]
+    Misses {
+        first: f64,
+        last: f64,
+        missed: usize,
+        bodies: usize,
+        time: f64,
+        lightest: f64,
+        heaviest: f64,
+    },
+    #[error(
+        "--bins: at t = {time:e} s body {id} has mass {mass:e} kg, outside the grid [{first:e}, {last:e}) kg; widen the grid"
+    )]
+    Outside {
+        time: f64,
+        id: u64,
+        mass: f64,
+        first: f64,
+        last: f64,
+    },
+}
+
+/// The most classes a grid may have: the file's fragment mass fractions are Nm³ floats
+/// (216 MB at 300 classes; DustPy's default grid has 120).
+pub const MAX_CLASSES: usize = 300;
+
+/// Where a grid came from (kept in the file's provenance).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum GridKind {
+    Edges,
+    DustPy,
+    OpenFoam,
+}
+
+/// Mass classes: `edges.len() − 1` classes, class k = [edges[k], edges[k+1]) [kg].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MassGrid {
+    pub kind: GridKind,
+    /// The spec as given (`--bins`).
+    pub spec: String,
+    /// Class edges [kg], strictly increasing.
+    pub edges: Vec<f64>,
+    /// The representative mass of each class [kg]: DustPy's `sim.grid.m[k]`, the
+    /// OpenFOAM group's mass, or the geometric mean of the edges for explicit edges.
+    pub centres: Vec<f64>,
+}
+
+/// Parse the values after `kind:`, each finite and > 0, strictly increasing.
+fn numbers(kind: &'static str, text: &str) -> Result<Vec<f64>, GridError> {
+    let mut values: Vec<f64> = Vec::new();
+    for (index, part) in text.split(',').map(str::trim).enumerate() {
+        let value: f64 = part.parse().map_err(|_| GridError::NotANumber {
+            kind,
+            index,
+            text: part.to_string(),
+        })?;
+        if !(value.is_finite() && value > 0.0) {
+            return Err(GridError::NotPositive { kind, index, value });
+        }
+        if let Some(&prev) = values.last()
+            && value <= prev
+        {
+            return Err(GridError::Unsorted {
+                kind,
+                index,
+                value,
+                prev_index: index - 1,
+                prev,
+            });
+        }
+        values.push(value);
+    }
+    Ok(values)
+}
+
+/// Edges around increasing points: geometric midpoints inside, and half a log-spacing
+/// beyond each end point (what a logarithmic grid's cell interfaces are).
+fn edges_around(points: &[f64]) -> Vec<f64> {
+    let n = points.len();
+    let mut edges = Vec::with_capacity(n + 1);
+    edges.push(points[0] / (points[1] / points[0]).sqrt());
+    edges.extend(points.windows(2).map(|w| (w[0] * w[1]).sqrt()));
+    edges.push(points[n - 1] * (points[n - 1] / points[n - 2]).sqrt());
+    edges
+}
+
+impl MassGrid {
+    /// Parse `--bins`; `density` [kg/m³] turns OpenFOAM diameters into masses.
+    pub fn parse(spec: &str, density: f64) -> Result<Self, GridError> {
+        let grid = Self::parse_any(spec, density)?;
+        if grid.classes() > MAX_CLASSES {
+            return Err(GridError::TooMany {
+                classes: grid.classes(),
+            });
+        }
+        Ok(grid)
+    }
+
+    fn parse_any(spec: &str, density: f64) -> Result<Self, GridError> {
+        let (kind, rest) = spec
+            .split_once(':')
+            .ok_or_else(|| GridError::Kind(spec.to_string()))?;
+        match kind.trim() {
+            "edges" => {
+                let edges = numbers("edges", rest)?;
+                Self::from_edges(edges, spec)
+            }
+            "dustpy" => {
+                let values = rest
+                    .split(',')
+                    .map(str::trim)
+                    .enumerate()
+                    .map(|(index, text)| {
+                        text.parse::<f64>().map_err(|_| GridError::NotANumber {
+                            kind: "dustpy",
+                            index,
+                            text: text.to_string(),
+                        })
+                    })
+                    .collect::<Result<Vec<f64>, _>>()?;
+                let [mmin, mmax, per_decade] = values[..] else {
+                    return Err(GridError::DustPy {
+                        field: "values",
+                        allowed: "three: mmin,mmax,bins_per_decade",
+                        got: values.len().to_string(),
+                    });
+                };
+                if !(mmin.is_finite() && mmin > 0.0) {
+                    return Err(GridError::DustPy {
+                        field: "mmin",
+                        allowed: "a finite mass > 0 [g]",
+                        got: mmin.to_string(),
+                    });
+                }
+                if !(mmax.is_finite() && mmax > mmin) {
+                    return Err(GridError::DustPy {
+                        field: "mmax",
+                        allowed: "> mmin",
+                        got: format!("{mmax:e} ≤ {mmin:e} g"),
+                    });
+                }
+                if !(per_decade.fract() == 0.0 && (1.0..=1e4).contains(&per_decade)) {
+                    return Err(GridError::DustPy {
+                        field: "bins_per_decade",
+                        allowed: "an integer from 1 to 10000",
+                        got: per_decade.to_string(),
+                    });
+                }
+                let points_g = dustpy_mass_grid(mmin, mmax, per_decade as u32);
+                // DustPy works in grams; the engine in kg.
+                let points: Vec<f64> = points_g.iter().map(|m| m * 1e-3).collect();
+                Ok(Self {
+                    kind: GridKind::DustPy,
+                    spec: spec.to_string(),
+                    edges: edges_around(&points),
+                    centres: points,
+                })
+            }
+            "openfoam" => {
+                let diameters = numbers("openfoam", rest)?;
+                if diameters.len() < 2 {
+                    return Err(GridError::TooFew {
+                        kind: "openfoam",
+                        needed: 2,
+                        got: diameters.len(),
+                    });
+                }
+                let points: Vec<f64> = diameters
+                    .iter()
+                    .map(|d| density * std::f64::consts::PI * d * d * d / 6.0)
+                    .collect();
+                Ok(Self {
+                    kind: GridKind::OpenFoam,
+                    spec: spec.to_string(),
+                    edges: edges_around(&points),
+                    centres: points,
+                })
+            }
+            _ => Err(GridError::Kind(spec.to_string())),
+        }
+    }
+
+    /// A grid of explicit edges [kg].
+    pub fn from_edges(edges: Vec<f64>, spec: &str) -> Result<Self, GridError> {
+        if edges.len() > MAX_CLASSES + 1 {
+            return Err(GridError::TooMany {
+                classes: edges.len() - 1,
+            });
+        }
+        if edges.len() < 2 {
+            return Err(GridError::TooFew {
+                kind: "edges",
+                needed: 2,
+                got: edges.len(),
+            });
+        }
+        for (index, w) in edges.windows(2).enumerate() {
+            if !(w[0].is_finite() && w[0] > 0.0) {
+                return Err(GridError::NotPositive {
+                    kind: "edges",
+                    index,
+                    value: w[0],
+                });
+            }
+            if w[1] <= w[0] {
+                return Err(GridError::Unsorted {
+                    kind: "edges",
+                    index: index + 1,
+                    value: w[1],
+                    prev_index: index,
+                    prev: w[0],
+                });
+            }
+        }
+        let centres = edges.windows(2).map(|w| (w[0] * w[1]).sqrt()).collect();
+        Ok(Self {
+            kind: GridKind::Edges,
+            spec: spec.to_string(),
+            edges,
+            centres,
+        })
+    }
+
+    /// Number of classes.
+    pub fn classes(&self) -> usize {
+        self.edges.len() - 1
+    }
+
+    /// The class of mass `m` [kg], or `None` outside [first edge, last edge).
+    #[inline]
+    pub fn class_of(&self, m: f64) -> Option<usize> {
+        // Index of the first edge above m: class = that − 1.
+        let above = self.edges.partition_point(|&e| e <= m);
+        (above >= 1 && above < self.edges.len()).then(|| above - 1)
+    }
+
+    /// Refuse a grid that leaves out any of `masses` [kg] at time `time`.
+    pub fn check_covers(&self, masses: &[f64], time: f64) -> Result<(), GridError> {
+        let missed = masses
+            .iter()
+            .filter(|&&m| self.class_of(m).is_none())
+            .count();
+        if missed == 0 {
+            return Ok(());
+        }
+        let lightest = masses.iter().copied().fold(f64::INFINITY, f64::min);
+        let heaviest = masses.iter().copied().fold(0.0, f64::max);
+        Err(GridError::Misses {
+            first: self.edges[0],
+            last: self.edges[self.edges.len() - 1],
+            missed,
+            bodies: masses.len(),
+            time,
+            lightest,
+            heaviest,
+        })
+    }
+}
+
+/// DustPy's mass grid [g] (`Simulation._makemassgrid`): ⌈log10 mmax − log10 mmin⌉ decades
+/// times `per_decade`, plus one, log-spaced points from mmin to mmax inclusive.
+pub fn dustpy_mass_grid(mmin: f64, mmax: f64, per_decade: u32) -> Vec<f64> {
+    let (lo, hi) = (mmin.log10(), mmax.log10());
+    let decades = (hi - lo).ceil();
+    let nm = (decades * per_decade as f64) as usize + 1;
+    // numpy.logspace: 10^(lo + k (hi − lo)/(Nm − 1)).
+    (0..nm)
+        .map(|k| 10f64.powf(lo + (hi - lo) * k as f64 / (nm - 1) as f64))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dustpy_default_grid_has_dustpys_length() {
+        // DustPy's defaults mmin = 1e-12 g, mmax = 1e5 g, Nmbpd = 7: 17 decades → 120 points.
+        let g = MassGrid::parse("dustpy:1e-12,1e5,7", 1000.0).unwrap();
+        assert_eq!(g.classes(), 120);
+        assert!((g.centres[0] - 1e-15).abs() < 1e-27);
+        assert!((g.centres[119] / 1e2 - 1.0).abs() < 1e-12);
+        // Each point lies inside its own class.
+        for (k, &m) in g.centres.iter().enumerate() {
+            assert_eq!(g.class_of(m), Some(k));
+        }
+    }
+
+    #[test]
+    fn edges_are_half_open() {
+        let g = MassGrid::parse("edges:1,2,4", 1.0).unwrap();
+        assert_eq!(g.class_of(1.0), Some(0));
+        assert_eq!(g.class_of(2.0), Some(1));
+        assert_eq!(g.class_of(3.999), Some(1));
+        assert_eq!(g.class_of(4.0), None);
+        assert_eq!(g.class_of(0.5), None);
+    }
+}

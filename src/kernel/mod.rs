@@ -1,0 +1,148 @@
+//! Measured collision kernels for coagulation codes (`agglo kernel`; issue 30,
+//! docs/outputs.md "agglo kernel", docs/model.md §14 for the ballistic check).
+//!
+//! Codes that integrate the Smoluchowski equation — DustPy, the population-balance
+//! modules of CFD codes — read a collision kernel K_ij and outcome probabilities per
+//! pair of mass classes. This module measures them from simulated collisions on the
+//! consumer's grid ([`MassGrid`]): an [`Accumulator`] gathers, during a run, the impact
+//! counts per outcome and the exposure of every pair of classes (exact on the event
+//! core, O(classes) per merge or fragmentation, nothing per step otherwise); runs,
+//! seeds and windows pool by adding; [`Estimate`] turns the pooled sums into the
+//! kernel, its errors and the rest, and [`write`] stores them as `.npz` and as a long
+//! table. [`measure`] runs an ensemble of seeds on the task farm, pooled in seed order,
+//! so the file is the same for any number of threads.
+//!
+//! ```no_run
+//! use agglo::kernel::{self, Accumulator, Estimate, MassGrid, Sampling, Window};
+//! use agglo::prelude::*;
+//! let scenario = Scenario::load(std::path::Path::new("scenarios/ballistic_aggregation.json"))?;
+//! let grid = MassGrid::parse("dustpy:1e-5,1,7", scenario.material.rho)?;
+//! let acc = kernel::measure(&scenario, &grid, Window::default(), Sampling::default(),
+//!     &kernel::seeds(&scenario, 4), &agglo::farm::Workers::local(0), |_| {})?;
+//! let k = Estimate::of(&acc);
+//! println!("K_00 = {:e} m³/s", k.floats("kernel")[0]);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod accumulator;
+mod estimate;
+mod grid;
+pub mod write;
+
+pub use accumulator::{
+    Accumulator, KernelError, OUTCOMES, RunMoments, Sampling, Tally, Window, subscribe,
+};
+pub use estimate::{
+    Array, ArraySpec, CONVENTION, Data, Dim, Estimate, KERNEL_ARRAYS, ZERO_COUNT_UPPER_95, wilson,
+};
+pub use grid::{GridError, GridKind, MAX_CLASSES, MassGrid, dustpy_mass_grid};
+
+use std::ops::ControlFlow;
+
+use anyhow::Context;
+
+use crate::farm::Workers;
+use crate::scenario::Scenario;
+use crate::schedule::Simulation;
+
+/// The seeds of an ensemble of `count` runs: the scenario's seed, then the next ones
+/// (each run can be repeated alone with `agglo run --seed`).
+pub fn seeds(scenario: &Scenario, count: u32) -> Vec<u64> {
+    (0..count as u64)
+        .map(|s| scenario.seed.wrapping_add(s))
+        .collect()
+}
+
+/// The scenario's simulation with the built-in physics, collecting what an
+/// [`Accumulator`] reads.
+pub fn simulation(scenario: &Scenario) -> Result<Simulation, crate::error::SimError> {
+    use agglo_systems::AddDefaultPlugins;
+    let mut builder = Simulation::builder(scenario)?;
+    builder.add_default_plugins();
+    subscribe(&mut builder);
+    builder.build()
+}
+
+/// Run `scenario` with `seed` to its end, accumulating on `grid`.
+pub fn measure_one(
+    scenario: &Scenario,
+    grid: &MassGrid,
+    window: Window,
+    sampling: Sampling,
+    seed: u64,
+) -> anyhow::Result<Accumulator> {
+    let mut scenario = scenario.clone();
+    scenario.seed = seed;
+    let mut sim = simulation(&scenario).context("setting up the scene")?;
+    let mut acc = Accumulator::new(grid.clone(), window, sampling);
+    acc.begin(&sim)?;
+    let mut failed = None;
+    let outcome = sim.run_with(|s| match acc.observe(s) {
+        Ok(()) => ControlFlow::Continue(()),
+        Err(e) => {
+            failed = Some(e);
+            ControlFlow::Break(())
+        }
+    });
+    if let Some(e) = failed {
+        return Err(e.into());
+    }
+    outcome.with_context(|| format!("running seed {seed}"))?;
+    acc.end_run(&sim)?;
+    Ok(acc)
+}
+
+/// Run `scenario` once per seed on `workers` and pool the runs in seed order (so the
+/// result does not depend on the number of workers). `progress` gets a line per run.
+pub fn measure(
+    scenario: &Scenario,
+    grid: &MassGrid,
+    window: Window,
+    sampling: Sampling,
+    seeds: &[u64],
+    workers: &Workers,
+    mut progress: impl FnMut(&str),
+) -> anyhow::Result<Accumulator> {
+    let work = |seed: &u64| -> Result<Accumulator, String> {
+        measure_one(scenario, grid, window, sampling, *seed).map_err(|e| format!("{e:#}"))
+    };
+    let total = seeds.len();
+    let mut done = 0;
+    let results = crate::farm::map_with_progress(workers, seeds.to_vec(), &work, |_, r| {
+        done += 1;
+        match r {
+            Ok(acc) => progress(&format!(
+                "run {done}/{total} (seed {}): {} impacts in the window",
+                acc.seeds.first().copied().unwrap_or(0),
+                (0..acc.classes() * acc.classes())
+                    .map(|p| acc.pooled.total(p))
+                    .sum::<u64>()
+            )),
+            Err(e) => progress(&format!("run {done}/{total} failed: {e}")),
+        }
+    })
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut pooled = Accumulator::new(grid.clone(), window, sampling);
+    for (seed, result) in seeds.iter().zip(results) {
+        let acc = result.map_err(|e| anyhow::anyhow!("seed {seed}: {e}"))?;
+        pooled.merge(&acc)?;
+    }
+    Ok(pooled)
+}
+
+/// Write the estimate of `acc` to `npz` (and the long table to `long`, if given), in
+/// SI or cgs, with `scenario` as provenance.
+pub fn write_files(
+    acc: &Accumulator,
+    scenario: &Scenario,
+    cgs: bool,
+    npz: &std::path::Path,
+    long: Option<&std::path::Path>,
+) -> anyhow::Result<()> {
+    let arrays = Estimate::of(acc).into_arrays(cgs, &scenario.to_json(), &acc.grid.spec);
+    write::write_npz(npz, &arrays)?;
+    if let Some(path) = long {
+        write::write_long(path, &arrays)?;
+    }
+    Ok(())
+}
