@@ -325,6 +325,19 @@ pub fn placed_bodies(
                 ),
             ));
         }
+        // Larger than half the box is allowed (a body may overlap its own periodic
+        // images, tests/suite/stepping.rs); a sphere of more volume than the box is not.
+        let largest = (6.0 / std::f64::consts::PI).cbrt() * d;
+        if radius > largest {
+            return Err(invalid(
+                i,
+                "radius",
+                format!(
+                    "{radius:e} m: the body is larger than the box (its volume exceeds the \
+                     box's (2D)³); allowed radius ≤ (6/π)^(1/3) D = {largest:e} m"
+                ),
+            ));
+        }
         let theta = p.temperature.unwrap_or(material.theta0);
         bodies.push(BodyState {
             id: p.id.unwrap_or(i as u64),

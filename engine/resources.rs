@@ -154,6 +154,27 @@ pub struct EnergyLedger {
     pub double_counted_heat: f64,
 }
 
+/// The first non-finite body state the checks met (stage 9), which ends the run with
+/// [`crate::error::SimError::NonFinite`] at the end of the step: the step it was seen at
+/// and what (the body's id, the quantity and its value). Not part of a restart
+/// snapshot: a run stops at the first.
+#[derive(Resource, Debug, Clone, PartialEq, Default)]
+pub struct NonFiniteState {
+    pub first: Option<(u64, String)>,
+}
+
+impl NonFiniteState {
+    /// Note a body's state if any quantity is NaN or infinite (the first one only).
+    pub fn check_body(&mut self, step: u64, id: u64, quantities: [(&str, f64); 9]) {
+        if self.first.is_some() {
+            return;
+        }
+        if let Some((what, x)) = quantities.iter().find(|(_, x)| !x.is_finite()) {
+            self.first = Some((step, format!("body {id}: {what} = {x}")));
+        }
+    }
+}
+
 /// Reference totals at t = 0 and the worst invariant errors seen.
 #[derive(Resource, Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct InvariantReport {
@@ -300,14 +321,52 @@ impl SimRng {
     }
 }
 
-/// Next unused stable id.
+/// Stable ids for new bodies (fragments): taken in order from `next` up to `end`, a range
+/// no body of the initial cloud holds. Ids are labels (any u64, docs/model.md §2): past
+/// the largest given id when there is room there (0, 1, … N − 1 gives N, N + 1, …),
+/// else from the widest gap between the given ids, so a fragment's id never repeats a
+/// body's.
 #[derive(Resource, Debug, Clone, Copy, PartialEq, Eq)]
 pub struct IdAllocator {
     pub next: u64,
+    /// One past the last id that may be handed out.
+    pub end: u64,
 }
 
 impl IdAllocator {
+    /// The allocator for a cloud holding `ids` (any order, distinct).
+    pub fn after(ids: impl Iterator<Item = u64>) -> Self {
+        let mut ids: Vec<u64> = ids.collect();
+        match ids.iter().max() {
+            None => Self {
+                next: 0,
+                end: u64::MAX,
+            },
+            Some(&max) if max < u64::MAX => Self {
+                next: max + 1,
+                end: u64::MAX,
+            },
+            Some(_) => {
+                // The widest run of free ids: below the smallest, or between two.
+                ids.sort_unstable();
+                let mut best = (0, ids[0]);
+                for w in ids.windows(2) {
+                    if w[1] - w[0] - 1 > best.1 - best.0 {
+                        best = (w[0] + 1, w[1]);
+                    }
+                }
+                Self {
+                    next: best.0,
+                    end: best.1,
+                }
+            }
+        }
+    }
+
     pub fn allocate(&mut self) -> u64 {
+        // The range holds at least 2^64 / N ids: beyond any number of fragments a run
+        // can make.
+        assert!(self.next < self.end, "stable ids exhausted");
         let id = self.next;
         self.next += 1;
         id

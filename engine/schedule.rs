@@ -219,7 +219,7 @@ impl SimBuilder {
             initial_bodies: cloud.len(),
         };
         // Past every id given (explicit bodies may bring their own, e.g. a run's end state).
-        let next_id = cloud.iter().map(|b| b.id + 1).max().unwrap_or(0);
+        let ids = IdAllocator::after(cloud.iter().map(|b| b.id));
         let initial = totals(
             cloud.iter().map(|b| (b.mass, b.velocity, b.temperature)),
             material.C,
@@ -246,7 +246,7 @@ impl SimBuilder {
         scene.insert_settings(&mut world);
         world.init_resource::<SimClock>();
         world.insert_resource(rng);
-        world.insert_resource(IdAllocator { next: next_id });
+        world.insert_resource(ids);
         world.insert_resource(InvariantReport {
             initial_mass: initial.mass,
             initial_momentum: initial.momentum.to_array(),
@@ -255,6 +255,7 @@ impl SimBuilder {
             ..Default::default()
         });
         world.init_resource::<Counters>();
+        world.init_resource::<crate::resources::NonFiniteState>();
         world.init_resource::<EnergyLedger>();
         world.init_resource::<ContactList>();
         world.init_resource::<ImpactRecords>();
@@ -824,6 +825,16 @@ impl Simulation {
             rotate(&mut self.world);
         }
         self.schedule.run(&mut self.world);
+        // A NaN or infinite body state seen by the checks (stage 9) ends the run here,
+        // naming the body, the quantity and the step (it once ran on to T, exit 0).
+        if let Some((step, what)) = self
+            .world
+            .resource::<crate::resources::NonFiniteState>()
+            .first
+            .clone()
+        {
+            return Err(SimError::NonFinite { step, what });
+        }
         // bevy_ecs keeps a message per component of every despawned body until trackers
         // are cleared (for `RemovedComponents` readers; the engine has none): left alone,
         // a merging 1e6 cloud held 168 MB of them at its end.

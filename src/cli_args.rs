@@ -276,12 +276,12 @@ pub struct LiveArgs {
     /// With --live: hold the start until a client subscribes.
     #[arg(long, requires = "live")]
     pub live_wait: bool,
-    /// With --live: frames per second of wall-clock time, at most (0 < HZ ≤ 1000).
-    #[arg(long, value_name = "HZ", default_value_t = 10.0)]
+    /// With --live: frames per second of wall-clock time, at most (0.001 ≤ HZ ≤ 1000).
+    #[arg(long, value_name = "HZ", default_value_t = 10.0, requires = "live")]
     pub live_rate: f64,
     /// With --live: bodies drawn per frame, about, at most (a deterministic subset by
     /// id when the cloud is larger; /stats always covers every body).
-    #[arg(long, value_name = "N", default_value_t = 10_000)]
+    #[arg(long, value_name = "N", default_value_t = 10_000, requires = "live")]
     pub live_bodies: usize,
 }
 

@@ -6,7 +6,9 @@
 //! without them velocities are drawn from the cloud's distribution), `id`, `mass` [kg],
 //! `radius` [m], `temperature` [K], `primaries` optional; `hardness` is accepted and
 //! ignored (it follows θ); with a `t` column only the rows of the largest t are taken
-//! (the last sample of `--snapshots`). Any other column is refused, to catch a typo.
+//! (the last sample of `--snapshots`). Any other column is refused, to catch a typo, and
+//! so is a column named twice. Ids are labels, any u64 read exactly (docs/model.md §2).
+//! A CSV file is read as CSV (quoted fields; pandas' unnamed index column is left out).
 
 use std::path::Path;
 
@@ -48,7 +50,7 @@ pub fn load_bodies(path: &Path) -> anyhow::Result<Vec<PlacedBody>> {
         _ => bail!("{}: give all of vx, vy, vz or none", path.display()),
     };
     let ids = has("id")
-        .then(|| table.ints("id"))
+        .then(|| table.ids("id"))
         .transpose()
         .with_context(|| format!("{}", path.display()))?;
     let (mass, radius, temperature, primaries) = (
@@ -70,13 +72,7 @@ pub fn load_bodies(path: &Path) -> anyhow::Result<Vec<PlacedBody>> {
     }
     rows.into_iter()
         .map(|k| {
-            let id = match &ids {
-                Some(ids) if ids[k] < 0 => {
-                    bail!("{}: row {k}: id {} is negative", path.display(), ids[k])
-                }
-                Some(ids) => Some(ids[k] as u64),
-                None => None,
-            };
+            let id = ids.as_ref().map(|ids| ids[k]);
             Ok(PlacedBody {
                 position: [x[k], y[k], z[k]],
                 velocity: velocity.as_ref().map(|(vx, vy, vz)| [vx[k], vy[k], vz[k]]),

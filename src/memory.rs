@@ -115,6 +115,25 @@ impl MemoryEstimate {
     }
 }
 
+/// An error when `count` items (strings, scan points) needing `bytes` [B] in all exceed
+/// the memory available now (`run`'s check for bodies, applied to the inverse problem
+/// and scans, which once aborted on an allocation of 1e12 strings).
+pub fn fits(what: &str, count: usize, bytes: f64) -> Result<(), String> {
+    let available = available_bytes().unwrap_or(f64::INFINITY);
+    if bytes + BASE_BYTES > available {
+        return Err(format!(
+            "{count} {what} need about {:.1} GB, but only {:.1} GB of memory is available; \
+             allowed at most {:.3e} {what} on this machine now",
+            bytes / 1e9,
+            available / 1e9,
+            ((available - BASE_BYTES) / (bytes / count.max(1) as f64))
+                .max(0.0)
+                .floor()
+        ));
+    }
+    Ok(())
+}
+
 /// Memory available to a new process [B], from /proc/meminfo (Linux).
 pub fn available_bytes() -> Option<f64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;

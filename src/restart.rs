@@ -56,19 +56,8 @@ pub fn restart_path(
     } else if let Some(mcap) = recording {
         mcap.with_extension("restart")
     } else {
-        // The name may carry `--set` settings: keep it a plain file name.
-        let name: String = scenario
-            .name
-            .chars()
-            .map(|c| {
-                if c.is_alphanumeric() || "-_.".contains(c) {
-                    c
-                } else {
-                    '_'
-                }
-            })
-            .collect();
-        PathBuf::from(format!("{name}.restart"))
+        // The name may carry `--set` settings: keep it a plain, short file name.
+        PathBuf::from(format!("{}.restart", scenario.file_stem()))
     })
 }
 

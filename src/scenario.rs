@@ -466,12 +466,28 @@ impl Scenario {
         v.positive("output.recording.playback_seconds", r.playback_seconds);
         if let Some(restart) = &self.output.restart {
             v.positive("output.restart.every", restart.every);
+            // A checkpoint is taken at a step end, at most one per step (the event core
+            // cuts a step to land on each): more checkpoints than the run may take steps
+            // would never finish (1e-300 s once wrote a synced file every step).
+            v.step_count_fits(
+                "output.restart.every",
+                "checkpoints T/every",
+                t.end,
+                restart.every,
+                t.max_steps,
+            );
         }
         v.issues.extend(self.field.issues());
         if let Some(schedule) = &self.output.sampling {
             for (field, allowed, got) in schedule.problems() {
                 v.push(&format!("output.sampling.{field}"), allowed, got);
             }
+        }
+        // On fields known to be in range: the constants derived from them must neither
+        // overflow nor vanish (each field in range can still give an infinite box volume,
+        // a primary mass of 0, or θ⁴ = ∞ in the radiation law).
+        if v.issues.is_empty() {
+            self.check_derived(&mut v);
         }
         // Last, on fields known to be in range: the explicit bodies as a run places them
         // (in the box, distinct ids, consistent masses and radii, no overlaps; O(N)) —
@@ -507,6 +523,154 @@ impl Scenario {
             Ok(())
         } else {
             Err(ScenarioError::Invalid(v.issues))
+        }
+    }
+}
+
+impl Scenario {
+    /// The scenario's name as a plain file name for the files named after it (the
+    /// restart file `NAME.restart`, the live layout): characters other than letters,
+    /// digits, `-`, `_` and `.` become `_` (a name carries `--set` settings, whose
+    /// values may hold "/"), and a name longer than 100 bytes is cut to 80 characters
+    /// followed by a hash of the whole name (a long name failed with "File name too
+    /// long" at the first checkpoint). Short plain names are unchanged.
+    pub fn file_stem(&self) -> String {
+        let plain: String = self
+            .name
+            .chars()
+            .map(|c| {
+                if c.is_alphanumeric() || "-_.".contains(c) {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        if plain.len() <= 100 {
+            return plain;
+        }
+        // FNV-1a, 64 bits: stable across builds and platforms.
+        let hash = self.name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        });
+        let head: String = plain.chars().take(80).collect();
+        format!("{head}-{hash:016x}")
+    }
+}
+
+/// Temperatures [K] whose fourth power (the radiation law, θ⁴) stays finite with room
+/// for the Stefan–Boltzmann factor: θ ≤ 1e70 K.
+const MAX_TEMPERATURE: f64 = 1e70;
+
+impl Scenario {
+    /// The derived constants of the scene are finite and, where they divide, not zero:
+    /// the box volume (2D)³, the primary grain's mass m0 = (4/3)π b0³ ρ with m0² normal
+    /// and (N m0)² finite (reduced masses and energies multiply two masses; the whole
+    /// cloud can merge into one body), its heat capacity m0 C, and the radiation law's
+    /// θ⁴ at the hottest given temperature.
+    fn check_derived(&self, v: &mut Validator) {
+        let d = self.domain.half_width;
+        if !(1e-100..=1e100).contains(&d) {
+            v.issues.push(ValidationIssue {
+                path: "box.half_width".into(),
+                message: format!(
+                    "the box volume (2D)³ = {:e} m³ overflows or vanishes; allowed 1e-100 m ≤ D ≤ 1e100 m (got {d})",
+                    self.domain.side().powi(3),
+                ),
+            });
+            return;
+        }
+        let b0 = self.primary_radius();
+        let m0 = 4.0 / 3.0 * std::f64::consts::PI * b0.powi(3) * self.material.rho;
+        let total = m0 * self.cloud.count.max(self.cloud.bodies.len()) as f64;
+        let radius_field = if self.cloud.radius.is_some() {
+            "cloud.radius"
+        } else {
+            "cloud.size_ratio"
+        };
+        if !(b0.powi(2).is_normal() && (m0 * m0).is_normal() && (m0 * self.material.C).is_normal())
+        {
+            v.issues.push(ValidationIssue {
+                path: radius_field.into(),
+                message: format!(
+                    "the primary radius b0 = {b0:e} m gives a primary mass m0 = {m0:e} kg (ρ = {:e}) \
+                     whose square underflows; allowed b0 and ρ with m0 > 1e-150 kg",
+                    self.material.rho
+                ),
+            });
+        }
+        if !(total * total).is_finite() {
+            v.issues.push(ValidationIssue {
+                path: "material.rho".into(),
+                message: format!(
+                    "the cloud's mass N m0 = {total:e} kg overflows when squared (reduced masses, \
+                     energies); allowed ρ and b0 with N m0 < 1e150 kg (got ρ = {:e})",
+                    self.material.rho
+                ),
+            });
+        }
+        // Under drag, every body from a primary to the whole cloud merged into one needs
+        // a relaxation time τ that is positive and finite, with a finite terminal
+        // velocity u + g τ: an Epstein gas of density 1e-320 gave τ = ∞ and every
+        // position NaN.
+        if let Some(drag) = self.field.drag
+            && v.issues.is_empty()
+        {
+            let field = match drag.relaxation {
+                Relaxation::Constant { .. } => "field.drag.relaxation.constant.tau",
+                Relaxation::Stokes { .. } => "field.drag.relaxation.stokes.viscosity",
+                Relaxation::Epstein { .. } => "field.drag.relaxation.epstein.gas_density",
+            };
+            let radius_of = |mass: f64| b0 * (mass / m0).cbrt();
+            for mass in [m0, total] {
+                let tau = self.field.relaxation_time(mass, radius_of(mass));
+                let terminal = glam::DVec3::from_array(drag.gas_velocity) + self.field.g() * tau;
+                if !(tau.is_finite() && tau.is_normal() && terminal.is_finite()) {
+                    v.issues.push(ValidationIssue {
+                        path: field.into(),
+                        message: format!(
+                            "gives a body of {mass:e} kg the relaxation time τ = {tau:e} s \
+                             (terminal velocity {terminal}); allowed values giving a finite \
+                             τ > 0 and a finite terminal velocity for every body from a \
+                             primary to the whole cloud"
+                        ),
+                    });
+                    break;
+                }
+            }
+        }
+        let m = &self.material;
+        for (path, theta) in [
+            ("material.theta0", m.theta0),
+            ("material.theta_s", m.theta_s),
+        ] {
+            if theta > MAX_TEMPERATURE {
+                v.push(path, "0 ≤ θ ≤ 1e70 K (the radiation law takes θ⁴)", theta);
+            } else if v.issues.is_empty() {
+                // The cooling rate of a primary at θ: k_c θ + k_r θ⁴ [K/s] must be finite.
+                let law = agglo_engine::laws::cooling::CoolingLaw::for_body(m, m0, b0);
+                let rate = law.k_convection * theta + law.k_radiation * theta.powi(4);
+                if !rate.is_finite() {
+                    v.issues.push(ValidationIssue {
+                        path: path.into(),
+                        message: format!(
+                            "a primary grain (b0 = {b0:e} m) at θ = {theta:e} K cools at an \
+                             infinite rate k_c θ + k_r θ⁴; allowed θ with a finite rate (got {theta})"
+                        ),
+                    });
+                }
+            }
+        }
+        for (i, body) in self.cloud.bodies.iter().enumerate() {
+            if let Some(theta) = body.temperature
+                && theta > MAX_TEMPERATURE
+            {
+                v.push(
+                    &format!("cloud.bodies.{i}.temperature"),
+                    "0 < θ ≤ 1e70 K (the radiation law takes θ⁴)",
+                    theta,
+                );
+            }
         }
     }
 }
@@ -581,18 +745,8 @@ fn json_kind(first: char) -> Option<&'static str> {
     }
 }
 
-/// The largest speed a scenario may give [m/s]: any |v_mean|, any v_rel component, any
-/// explicit body's |velocity|.
-///
-/// 1e5 m/s (100 km/s) is above the fastest natural impacts (meteoroids meet the Earth at
-/// up to ~72 km/s) and hundreds of times the speeds of granular flows and of the papers'
-/// scenes (P04: ~200 m/s; P02: ~4 m/s), so no physical scene is refused. Below it every
-/// energy stays far from overflow (½ v² ~ 1e10 J/kg) and runs of the
-/// shipped size finish: with v̄ = (1e5, 0, 0) m/s and v_rel = 1e5 m/s per component
-/// (release build) P04's best case takes 0.01 s, quick_demo 0.25 s (38 635 impacts).
-/// Above it lie only mistakes: with v_rel = 1e300 m/s the kinetic energies overflow to ∞
-/// and P04's scene was still running after 200 s.
-pub const MAX_SPEED: f64 = 1e5;
+/// The largest speed a scenario may give [m/s] (defined with the engine's scene types).
+pub use agglo_engine::scene::MAX_SPEED;
 
 /// True when none of the per-body checks of [`Scenario::validate`] would complain.
 fn body_is_plausible(b: &PlacedBody) -> bool {

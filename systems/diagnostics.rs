@@ -24,7 +24,9 @@ use serde::{Deserialize, Serialize};
 use agglo_engine::components::{
     Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
 };
-use agglo_engine::resources::{Counters, EnergyLedger, InvariantReport, SimClock, StepEvents};
+use agglo_engine::resources::{
+    Counters, EnergyLedger, InvariantReport, NonFiniteState, SimClock, StepEvents,
+};
 pub use agglo_engine::totals::{Totals, totals};
 
 // The `diagnostics` section of a scenario: how often and how strictly to check, read by
@@ -107,6 +109,7 @@ pub struct Checks<'w, 's> {
     initial: Local<'s, InitialEnergies>,
     report: ResMut<'w, InvariantReport>,
     counters: ResMut<'w, Counters>,
+    non_finite: ResMut<'w, NonFiniteState>,
 }
 
 /// The system.
@@ -119,6 +122,36 @@ pub fn check_invariants(mut checks: Checks, bodies: TotalsQuery) {
         return;
     }
     checks.check_now(&bodies);
+}
+
+/// Note the first NaN or infinite quantity of a body (the run then stops with
+/// `SimError::NonFinite`, naming it). Called only for a body already found invalid.
+#[allow(clippy::too_many_arguments)]
+fn note_non_finite(
+    state: &mut NonFiniteState,
+    step: u64,
+    id: u64,
+    p: DVec3,
+    v: DVec3,
+    m: f64,
+    b: f64,
+    t: f64,
+) {
+    state.check_body(
+        step,
+        id,
+        [
+            ("position x", p.x),
+            ("position y", p.y),
+            ("position z", p.z),
+            ("velocity x", v.x),
+            ("velocity y", v.y),
+            ("velocity z", v.z),
+            ("mass", m),
+            ("radius", b),
+            ("temperature", t),
+        ],
+    );
 }
 
 /// Relative error of the energy ledger: |E − (E0 + reaction heat − fracture energy −
@@ -306,6 +339,7 @@ pub fn check_step_totals(
                 "step {step}: body {} has invalid state (r = {}, v = {}, m = {:e}, b = {:e}, θ = {:e})",
                 id.0, p.0, v.0, m.0, b.0, t.0
             ));
+            note_non_finite(&mut checks.non_finite, step, id.0, p.0, v.0, m.0, b.0, t.0);
         }
         running.add(&Totals::of_body(m.0, v.0, t.0, c), 1.0);
     }
@@ -400,6 +434,7 @@ impl Checks<'_, '_> {
                 "step {step}: body {} has invalid state (r = {}, v = {}, m = {:e}, b = {:e}, θ = {:e})",
                 id.0, p.0, v.0, m.0, b.0, t.0
             ));
+                note_non_finite(&mut self.non_finite, step, id.0, p.0, v.0, m.0, b.0, t.0);
             }
         }
         self.record(violations);

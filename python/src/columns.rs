@@ -46,6 +46,8 @@ pub fn table_columns(py: Python<'_>, table: Table) -> PyResult<Bound<'_, PyDict>
         match values {
             Values::F(v) => out.set_item(name, v.into_pyarray(py))?,
             Values::I(v) => out.set_item(name, v.into_pyarray(py))?,
+            // Ids above i64::MAX (any u64 is an id): an unsigned array.
+            Values::U(v) => out.set_item(name, v.into_pyarray(py))?,
             Values::S(v) => out.set_item(name, PyList::new(py, v)?)?,
         }
     }

@@ -184,6 +184,10 @@ pub fn scan(args: ScanArgs, cluster: Option<&Cluster>) -> anyhow::Result<()> {
         "--points: allowed ≥ 2 (got {})",
         args.points
     );
+    // Each point keeps its value, its evaluation and its row: refused before any of
+    // them is allocated when they cannot fit (1e11 points aborted on an allocation).
+    agglo::memory::fits("points", args.points, args.points as f64 * 512.0)
+        .map_err(|e| anyhow::anyhow!("--points: {e}"))?;
     anyhow::ensure!(
         args.from.is_finite() && args.to.is_finite(),
         "--from/--to: allowed finite numbers"

@@ -105,12 +105,66 @@ impl Checkpoint {
             )));
         }
         let n = problem.dimension();
-        if cp.state.lower.len() != n || cp.state.parents.iter().any(|m| m.genes.len() != n) {
+        if cp.state.lower.len() != n
+            || cp.state.upper.len() != n
+            || cp.state.parents.iter().any(|m| m.genes.len() != n)
+        {
             return Err(InverseError::Checkpoint(format!(
                 "{}: gene count does not match the problem",
                 path.display()
             )));
         }
+        check_state(problem, &cp.state).map_err(|e| {
+            InverseError::Checkpoint(format!(
+                "{}: the state does not describe a run of this problem: {e}",
+                path.display()
+            ))
+        })?;
         Ok(cp.state)
     }
+}
+
+/// The GA state is one a run of `problem` can be in, checked as its scenarios are (a
+/// checkpoint altered and its checksum recomputed by hand must not resume): the bounds
+/// finite and inside the genes' own, lower ≤ upper; at most K parents, each inside the
+/// genes' bounds and giving a valid scenario; no more generations done than allowed.
+fn check_state(problem: &InverseProblem, state: &GaState) -> Result<(), String> {
+    let genes = &problem.spec.genes;
+    for (i, g) in genes.iter().enumerate() {
+        let (lo, hi) = (state.lower[i], state.upper[i]);
+        if !(lo.is_finite() && hi.is_finite() && g.min <= lo && lo <= hi && hi <= g.max) {
+            return Err(format!(
+                "gene {i} searched in [{lo}, {hi}]; allowed a range inside [{}, {}]",
+                g.min, g.max
+            ));
+        }
+    }
+    let ga = &problem.spec.ga;
+    if state.generations_done > ga.generations {
+        return Err(format!(
+            "{} generations done; ga.generations = {}",
+            state.generations_done, ga.generations
+        ));
+    }
+    if state.parents.len() > ga.parents {
+        return Err(format!(
+            "{} parents kept; ga.parents = {}",
+            state.parents.len(),
+            ga.parents
+        ));
+    }
+    for (k, m) in state.parents.iter().enumerate() {
+        for (i, (&x, g)) in m.genes.iter().zip(genes).enumerate() {
+            if !(x.is_finite() && g.min <= x && x <= g.max) {
+                return Err(format!(
+                    "parent {k}, gene {i} = {x}; allowed [{}, {}]",
+                    g.min, g.max
+                ));
+            }
+        }
+        problem
+            .scenario_for(&m.genes, problem.base.seed)
+            .map_err(|e| format!("parent {k} gives an invalid scenario: {e}"))?;
+    }
+    Ok(())
 }

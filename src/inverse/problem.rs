@@ -464,6 +464,47 @@ impl InverseProblem {
         {
             push("end_time.p02.steps".into(), "allowed ≥ 1 (got 0)".into());
         }
+        // A field a gene or a tie sets must be one nothing else sets afterwards, or
+        // best.json would report values never applied: the scene seed is each sample's,
+        // the P02 end-time rule sets time.end and the fixed step, and a path set twice
+        // keeps only the last value.
+        let mut seen: Vec<(&str, String)> = Vec::new();
+        for (i, g) in s.genes.iter().enumerate() {
+            let own = std::iter::once((g.path.as_str(), format!("genes.{i}.path")));
+            let ties = g
+                .tied
+                .iter()
+                .enumerate()
+                .map(|(j, t)| (t.path.as_str(), format!("genes.{i}.tied.{j}.path")));
+            for (path, field) in own.chain(ties) {
+                if path == "seed" {
+                    push(
+                        field.clone(),
+                        "`seed` is set for each sample from ga.seed; a gene on it would be \
+                         overwritten (allowed: a numeric field of the scene other than seed)"
+                            .into(),
+                    );
+                }
+                if matches!(s.end_time, EndTimeRule::P02 { .. })
+                    && (path == "time.end" || path.starts_with("time.stepping"))
+                {
+                    push(
+                        field.clone(),
+                        format!(
+                            "`{path}` is set by the P02 end-time rule (end_time.p02), which would \
+                             overwrite the gene; remove the rule or the gene"
+                        ),
+                    );
+                }
+                if let Some((_, first)) = seen.iter().find(|(p, _)| *p == path) {
+                    push(
+                        field.clone(),
+                        format!("`{path}` is already set by {first}; each field may be set once"),
+                    );
+                }
+                seen.push((path, field));
+            }
+        }
         match s.cost {
             CostSpec::Pi04 => {}
             CostSpec::Pi02 { target_ratio } => {
@@ -553,27 +594,55 @@ impl InverseProblem {
             );
         }
         if let FailurePolicy::Penalty(p) = s.on_failure
-            && !p.is_finite()
+            && !(p.is_finite() && p > 0.0)
         {
+            // Costs are ≥ 0 and minimised: a penalty ≤ 0 would let failed strings win.
             push(
                 "on_failure.penalty".into(),
-                format!("allowed a finite number (got {p})"),
+                format!("allowed a finite number > 0 (got {p})"),
             );
+        }
+        if let Err(message) = population_fits(ga.strings, s.genes.len()) {
+            push("ga.strings".into(), message);
+        }
+        // The check `agglo run` applies to a scene, for the scene every sample runs.
+        if let Err(message) = crate::memory::MemoryEstimate::of(&self.base).check() {
+            let message = message.strip_prefix("cloud.count: ").unwrap_or(&message);
+            push("base.cloud.count".into(), message.to_string());
         }
         if !issues.is_empty() {
             return Err(InverseError::Invalid(issues));
         }
         // Every corner of the box must give a valid scenario (e.g. s < 0.9, a0 ≤ af),
-        // so no gene combination can fail validation mid-run.
+        // so no gene combination can fail validation mid-run: all 2^k corners for up to
+        // MAX_CORNER_GENES genes (a0 at its upper bound with af at its lower one
+        // crossed, and only the all-lower and all-upper corners were tried), else those two.
         let (lo, hi) = self.bounds();
-        for (label, genes) in [("lower", &lo), ("upper", &hi)] {
-            if let Err(e) = self.scenario_for(genes, self.base.seed) {
+        let k = lo.len();
+        let corners: Vec<u64> = if k <= MAX_CORNER_GENES {
+            (0..1u64 << k).collect()
+        } else {
+            vec![0, u64::MAX]
+        };
+        for corner in corners {
+            let genes: Vec<f64> = (0..k)
+                .map(|i| if corner >> i & 1 == 1 { hi[i] } else { lo[i] })
+                .collect();
+            if let Err(e) = self.scenario_for(&genes, self.base.seed) {
+                let label: Vec<String> = self
+                    .gene_names()
+                    .iter()
+                    .zip(&genes)
+                    .map(|(n, x)| format!("{n} = {x}"))
+                    .collect();
                 issues.push(ValidationIssue {
                     path: "genes".into(),
                     message: format!(
-                        "all genes at their {label} bounds give an invalid scenario: {e}"
+                        "the genes at a corner of their bounds ({}) give an invalid scenario: {e}",
+                        label.join(", ")
                     ),
                 });
+                break;
             }
         }
         if issues.is_empty() {
@@ -582,6 +651,22 @@ impl InverseProblem {
             Err(InverseError::Invalid(issues))
         }
     }
+}
+
+/// Genes up to which every corner of the bounds is validated (2^10 scenarios, checked
+/// in well under a second for a generated cloud).
+const MAX_CORNER_GENES: usize = 10;
+
+/// Memory a GA population of `strings` strings of `genes` genes holds [B] per string:
+/// the genes, bounds and costs of a member and its evaluation record, measured loosely
+/// and rounded up (the populations that fit are small; this refuses the ones that
+/// cannot, e.g. 1e12 strings, before any allocation).
+const BYTES_PER_STRING: usize = 512;
+
+/// An error naming the memory a population needs when it exceeds what is available.
+pub fn population_fits(strings: usize, genes: usize) -> Result<(), String> {
+    let bytes = strings as f64 * (BYTES_PER_STRING + 16 * genes) as f64;
+    crate::memory::fits("strings", strings, bytes)
 }
 
 fn set_gene(value: &mut Value, path: &str, x: f64) -> Result<(), ScenarioError> {

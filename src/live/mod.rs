@@ -87,8 +87,10 @@ pub fn parse_addr(text: &str) -> anyhow::Result<SocketAddr> {
 /// Check the live options (the rate and the body count, with their allowed ranges).
 pub fn check_options(o: &LiveOptions) -> anyhow::Result<()> {
     anyhow::ensure!(
-        o.rate_hz.is_finite() && o.rate_hz > 0.0 && o.rate_hz <= 1000.0,
-        "--live-rate: allowed 0 < rate ≤ 1000 frames per second (got {})",
+        // Below one frame per 1000 s the frame period no longer fits a Duration for
+        // tiny rates (1e-300 panicked), and no one watches a frame a quarter of an hour.
+        o.rate_hz.is_finite() && (1e-3..=1000.0).contains(&o.rate_hz),
+        "--live-rate: allowed 0.001 ≤ rate ≤ 1000 frames per second (got {})",
         o.rate_hz
     );
     anyhow::ensure!(

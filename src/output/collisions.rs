@@ -12,13 +12,13 @@ use anyhow::Context;
 use crate::hooks::{FragmentMessage, ImpactMessage, ImpactOutcome};
 use crate::schedule::{SimBuilder, Simulation};
 
-use super::table::{Cell, Column, TableWriter, float, int, text};
+use super::table::{Cell, Column, TableWriter, float, id, text};
 
 /// The columns of the collision log, in order.
 pub const COLLISION_COLUMNS: &[Column] = &[
     float("t", "s", "contact time"),
-    int("id_a", "-", "stable id of the first body (id_a < id_b)"),
-    int("id_b", "-", "stable id of the second body"),
+    id("id_a", "-", "stable id of the first body (id_a < id_b)"),
+    id("id_b", "-", "stable id of the second body"),
     float("mass_a", "kg", "mass of body a before the impact"),
     float("mass_b", "kg", "mass of body b before the impact"),
     float("radius_a", "m", "radius of body a"),
@@ -88,8 +88,8 @@ impl CollisionLog {
             self.table
                 .row(&[
                     Cell::F(m.time),
-                    Cell::I(m.id_a as i64),
-                    Cell::I(m.id_b as i64),
+                    Cell::U(m.id_a),
+                    Cell::U(m.id_b),
                     Cell::F(m.mass_a),
                     Cell::F(m.mass_b),
                     Cell::F(m.radius_a),

@@ -206,7 +206,7 @@ impl RunTables {
                 cells.clear();
                 cells.extend_from_slice(&[
                     Cell::F(t),
-                    Cell::I(b.id as i64),
+                    Cell::U(b.id),
                     Cell::F(b.position.x),
                     Cell::F(b.position.y),
                     Cell::F(b.position.z),

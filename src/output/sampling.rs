@@ -111,6 +111,25 @@ impl Sampler {
         }
     }
 
+    /// A scheduled index a little below the last one reached by `t` (interval and log
+    /// schedules), or None when it is beyond 1e18.
+    fn index_near(&self, t: f64) -> Option<u64> {
+        let index = match self.schedule {
+            SampleSchedule::Interval { dt } => t / dt - 1.0,
+            SampleSchedule::Log { first, per_decade } => {
+                let first = first.unwrap_or(self.end * 10f64.powi(-DEFAULT_LOG_DECADES));
+                f64::from(per_decade) * (t / first).log10()
+            }
+            SampleSchedule::Steps { .. } => 0.0,
+        };
+        if index >= 1e18 {
+            return None;
+        }
+        // Two below, for the rounding of the division and of 10^x; a NaN or negative
+        // index is 0 (`as` saturates).
+        Some((index as u64).saturating_sub(2))
+    }
+
     /// Whether a sample is due at the end of step `step` (steps completed), at time `t`
     /// [s]; when it is, the schedule moves past `t`. O(1) per call, apart from the
     /// scheduled times a long step skips over.
@@ -124,6 +143,14 @@ impl Sampler {
                 // A relative 1e-12 of slack, so a step that lands on k·Δt up to rounding counts.
                 let reached = |when: f64| t >= when * (1.0 - 1e-12);
                 if reached(self.time_of(self.k)) {
+                    // Jump to about the index of t at once, then step past it: a step
+                    // may pass many scheduled times (an interval of 1e-300 s passed
+                    // 1e297 per step, counted one by one while no signal was heard).
+                    let Some(near) = self.index_near(t) else {
+                        // Finer than u64 can count: a sample at every step.
+                        return true;
+                    };
+                    self.k = self.k.max(near);
                     while reached(self.time_of(self.k)) {
                         self.k += 1;
                     }

@@ -271,7 +271,7 @@ pub fn outputs_markdown() -> String {
         for c in columns {
             let kind = match c.kind {
                 Kind::Float => "float",
-                Kind::Int => "integer",
+                Kind::Int | Kind::Id => "integer",
                 Kind::Text => "text",
             };
             s += &format!("| `{}` | {kind} | {} | {} |\n", c.name, c.unit, cell(c.doc));
@@ -321,7 +321,7 @@ fn kernel_markdown() -> String {
     for c in LONG_COLUMNS {
         let kind = match c.kind {
             Kind::Float => "float",
-            Kind::Int => "integer",
+            Kind::Int | Kind::Id => "integer",
             Kind::Text => "text",
         };
         s += &format!("| `{}` | {kind} | {} | {} |\n", c.name, c.unit, cell(c.doc));

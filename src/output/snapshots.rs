@@ -1,12 +1,12 @@
 //! The columns of `--snapshots` (and of `--final-state`, after the time), in one place:
 //! the snapshot writer, the schema page and `cloud.from_file`'s allowed columns read them.
 
-use super::table::{Column, float, int};
+use super::table::{Column, float, id};
 
 /// The columns of `--snapshots`: the time, then the columns of `--final-state`.
 pub const SNAPSHOT_COLUMNS: &[Column] = &[
     float("t", "s", "simulated time of the sample"),
-    int("id", "-", "stable body id (never reused)"),
+    id("id", "-", "stable body id (never reused; any u64)"),
     float("x", "m", "position, x, in [−D, D)"),
     float("y", "m", "position, y"),
     float("z", "m", "position, z"),

@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::Context;
-use mcap::read::{ChunkReader, LinearReader, Options};
+use mcap::read::{LinearReader, Options};
 use mcap::records::Record;
 use serde::Serialize;
 
@@ -194,11 +194,7 @@ impl Scan {
                 Ok(Record::DataEnd(_)) => return,
                 Ok(Record::Chunk { header, data }) => {
                     // Read the whole chunk first: a torn chunk must not count half.
-                    let records: Result<Vec<_>, _> = match ChunkReader::new(header, &data) {
-                        Ok(r) => r.collect(),
-                        Err(e) => Err(e),
-                    };
-                    match records {
+                    match super::chunk::records(&header, &data) {
                         Ok(records) => {
                             self.chunks += 1;
                             for r in records {
@@ -286,22 +282,55 @@ impl Inspection {
         if let Some(cmd) = &self.command_line {
             let _ = writeln!(s, "  command line: {cmd}");
         }
-        let _ = writeln!(
-            s,
-            "  {}; {} chunks, {} messages{}",
-            if self.finalised {
-                "finalised (summary present)"
-            } else {
-                "NOT finalised (no summary)"
-            },
-            self.chunks,
-            self.messages,
-            self.damage
-                .as_ref()
-                .filter(|_| !self.finalised)
-                .map(|d| format!(" — {d}"))
-                .unwrap_or_default()
-        );
+        match (self.finalised, &self.damage) {
+            (true, None) => {
+                let _ = writeln!(
+                    s,
+                    "  finalised (summary present); {} chunks, {} messages",
+                    self.chunks, self.messages
+                );
+            }
+            // The summary survived but the data did not read whole: say so in the text
+            // too ("finalised; 0 chunks" read as a healthy empty recording).
+            (true, Some(d)) => {
+                let _ = writeln!(
+                    s,
+                    "  DAMAGED: finalised (summary present), but only {} chunks, {} messages \
+                     read before the damage — {d}",
+                    self.chunks, self.messages
+                );
+            }
+            (false, damage) => {
+                let _ = writeln!(
+                    s,
+                    "  NOT finalised: the writer stopped before finishing (killed, or the disk \
+                     filled); {} complete chunks, {} messages are readable{}",
+                    self.chunks,
+                    self.messages,
+                    match (self.first_time, self.last_time) {
+                        (Some(a), Some(b)) => format!(", simulated time {a:e} s → {b:e} s"),
+                        _ => String::new(),
+                    }
+                );
+                if let Some(d) = damage {
+                    let _ = writeln!(s, "  where the readable part ends: {d}");
+                }
+                let restart = Path::new(&self.file).with_extension("restart");
+                let _ = if restart.exists() {
+                    writeln!(
+                        s,
+                        "  continue the run from its last checkpoint: agglo run --resume {}",
+                        restart.display()
+                    )
+                } else {
+                    writeln!(
+                        s,
+                        "  a run with output.restart continues from its last checkpoint with \
+                         agglo run --resume RUN.restart (none beside this file)"
+                    )
+                };
+            }
+        }
         match (self.first_time, self.last_time) {
             (Some(a), Some(b)) => {
                 let _ = writeln!(

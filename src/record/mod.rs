@@ -29,6 +29,7 @@
 //! box (`agglo layout`, and `RUN.layout.json` next to every `agglo run --out`) in
 //! [`layout`].
 
+mod chunk;
 pub mod inspect;
 pub mod layout;
 pub mod messages;

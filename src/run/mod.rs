@@ -100,6 +100,37 @@ impl RunPlan {
         })
     }
 
+    /// No output is the restart file: `--out run.restart` with `output.restart` wrote
+    /// the recording, then replaced it by the restart file at the first checkpoint.
+    pub fn check_paths(&self) -> anyhow::Result<()> {
+        let Some(restart) = self.restart_file() else {
+            return Ok(());
+        };
+        let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        let restart_abs = absolute(&restart);
+        let t = &self.tables;
+        for (flag, path) in [
+            ("--out (the recording)", &self.recording),
+            ("--summary", &self.summary),
+            ("--final-state", &self.final_state),
+            ("--series", &t.series),
+            ("--sizes", &t.sizes),
+            ("--snapshots", &t.snapshots),
+            ("--collisions", &t.collisions),
+        ] {
+            if let Some(path) = path
+                && absolute(path) == restart_abs
+            {
+                anyhow::bail!(
+                    "{flag} {} is also the restart file of this run's checkpoints; give one \
+                     of them another name (--restart FILE or output.restart.path)",
+                    path.display()
+                );
+            }
+        }
+        Ok(())
+    }
+
     /// The restart file this plan writes, if the scenario takes checkpoints: `restart`,
     /// else the resumed file, else the section's path, else beside the recording.
     pub fn restart_file(&self) -> Option<PathBuf> {
@@ -192,6 +223,7 @@ impl Run {
         customise: impl FnOnce(&mut crate::schedule::SimBuilder) -> anyhow::Result<()>,
     ) -> anyhow::Result<Self> {
         let scenario = &plan.scenario;
+        plan.check_paths()?;
         // Before anything is allocated: does the scene fit in memory (recorded or not)?
         if let Some(warning) =
             crate::memory::MemoryEstimate::of_run(scenario, plan.recording.is_some())
@@ -340,7 +372,18 @@ impl Run {
             output_error,
             kill_after: *kill_after,
         };
+        let _advancing = signals::Advancing::enter();
+        let stuck_at = std::env::var("AGGLO_TEST_STUCK_AT_STEP")
+            .ok()
+            .and_then(|v| v.parse::<u64>().ok());
         sim.run_until(done, |s| {
+            if stuck_at == Some(s.clock().step) {
+                // A step that never ends, for the test of the stop watchdog (signals.rs).
+                loop {
+                    std::thread::sleep(std::time::Duration::from_millis(50));
+                }
+            }
+            signals::step_done();
             if outputs.observe(s).is_break() || observe(s).is_break() {
                 return ControlFlow::Break(());
             }
@@ -499,7 +542,9 @@ fn start_live(
 ) -> anyhow::Result<LiveRun> {
     let layout = match beside {
         Some(p) => crate::record::layout::layout_path_for(p),
-        None => std::env::temp_dir().join(format!("agglo-live-{}.layout.json", scenario.name)),
+        None => {
+            std::env::temp_dir().join(format!("agglo-live-{}.layout.json", scenario.file_stem()))
+        }
     };
     crate::record::layout::write_fitted_layout(&layout, scenario.domain.half_width)?;
     announce_live(&server, &layout);

@@ -23,6 +23,7 @@ use glam::DVec3;
 
 use super::calendar::{Calendar, Event, EventKind, permute_in_place};
 use super::cells::{CellGrid, Partner, prefetch, round_fast};
+use super::slot_ids::SlotIds;
 use agglo_engine::field::{Field, FieldKind};
 use agglo_engine::laws::flight::{Flight, Search, contact_search, wall_crossing};
 // The exact time to contact along a line, with the grazing rule (laws::flight).
@@ -209,7 +210,7 @@ pub struct EventCore {
     pending: Vec<Pending>,
     alive: Vec<bool>,
     free: Vec<u32>,
-    slot_of_id: Vec<u32>,
+    slot_of_id: SlotIds,
     grid: CellGrid,
     calendar: Calendar,
     /// Predict against every body through every image (the O(N²) reference).
@@ -271,7 +272,7 @@ impl EventCore {
             counters: Vec::with_capacity(bodies),
             alive: Vec::with_capacity(bodies),
             free: Vec::new(),
-            slot_of_id: Vec::with_capacity(bodies),
+            slot_of_id: SlotIds::with_capacity(bodies),
             grid: CellGrid::new(half_width, min_radius, bodies),
             calendar: Calendar::default(),
             brute_force,
@@ -359,7 +360,7 @@ impl EventCore {
             + self.counters.capacity() * 4
             + self.alive.capacity()
             + self.free.capacity() * 4
-            + self.slot_of_id.capacity() * 4
+            + self.slot_of_id.bytes()
             + self.grid.bytes()
             + self.calendar.bytes()
     }
@@ -399,10 +400,7 @@ impl EventCore {
 
     /// The slot of a stable id, if present.
     pub fn slot_of(&self, id: u64) -> Option<u32> {
-        match self.slot_of_id.get(id as usize) {
-            Some(&s) if s != NONE => Some(s),
-            _ => None,
-        }
+        self.slot_of_id.get(id)
     }
 
     /// The trajectory in a slot.
@@ -467,11 +465,7 @@ impl EventCore {
         };
         self.store(slot, &t);
         self.pending[slot as usize] = Pending::UNKNOWN;
-        let id = t.id as usize;
-        if self.slot_of_id.len() <= id {
-            self.slot_of_id.resize(id + 1, NONE);
-        }
-        self.slot_of_id[id] = slot;
+        self.slot_of_id.set(t.id, slot, self.paths.len());
         let x = self.wrap(self.grid_position(slot, t.t_ref));
         self.grid.insert(slot, t.radius, x);
         slot
@@ -487,7 +481,7 @@ impl EventCore {
         self.alive[slot as usize] = false;
         // Any prediction naming this slot is now stale.
         self.counters[slot as usize] = self.counters[slot as usize].wrapping_add(1);
-        self.slot_of_id[id as usize] = NONE;
+        self.slot_of_id.clear(id);
         self.free.push(slot);
     }
 
@@ -956,7 +950,7 @@ impl EventCore {
         self.taus.truncate(live);
         self.counters.truncate(live);
         for (new, &(_, id, _)) in order.iter().enumerate() {
-            self.slot_of_id[id as usize] = new as u32;
+            self.slot_of_id.set(id, new as u32, live);
         }
         self.alive = vec![true; live];
         self.free.clear();

@@ -21,6 +21,7 @@ pub mod calendar;
 pub mod cells;
 pub mod core;
 pub mod resync;
+pub mod slot_ids;
 
 use bevy_ecs::prelude::*;
 

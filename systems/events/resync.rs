@@ -40,7 +40,17 @@ pub fn restart_part() -> RestartPart {
         },
         load: |world, bytes| {
             let saved: Saved = postcard::from_bytes(bytes).map_err(|e| e.to_string())?;
-            rebuild(world, DVec3::from_array(saved.frame_velocity), saved.stats);
+            let frame = DVec3::from_array(saved.frame_velocity);
+            // The grid's frame moves with the cloud's mean velocity, so no faster than a
+            // body may go (a flipped bit made it ~1e300 m/s, and the rebuilt core crossed
+            // cells without end: found by the fuzz harness).
+            if !(frame.is_finite() && frame.length() <= agglo_engine::scene::MAX_SPEED) {
+                return Err(format!(
+                    "the grid's frame velocity {frame} m/s; allowed a finite speed ≤ {:e} m/s",
+                    agglo_engine::scene::MAX_SPEED
+                ));
+            }
+            rebuild(world, frame, saved.stats);
             Ok(())
         },
     }

@@ -687,3 +687,34 @@ fn speculative_samples_never_change_an_ensemble() {
     // The used samples are the same set; any extra ones are marked unused.
     assert_eq!(spec_times.iter().filter(|t| t.used).count(), total as usize);
 }
+
+/// A checkpoint altered by hand with its checksum recomputed (issue 33): a state that no
+/// run of the problem can be in — a parent's gene far outside its bounds, a search range
+/// with lower > upper, more generations done than allowed — is refused on --resume, naming
+/// what is wrong.
+#[test]
+fn an_altered_checkpoint_with_a_recomputed_checksum_is_refused() {
+    use agglo::inverse::checkpoint::Checkpoint;
+    let problem = tiny_problem(2);
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    inverse::optimize(&problem, dir, &Options::default()).unwrap();
+    let text = read(dir, "checkpoint.json");
+    type Alter = fn(&mut GaState);
+    let cases: [(Alter, &str); 3] = [
+        (|s| s.parents[0].genes[0] = 1e300, "parent 0, gene 0"),
+        (|s| s.lower[0] = s.upper[0] + 1.0, "gene 0 searched"),
+        (|s| s.generations_done = 1000, "generations done"),
+    ];
+    for (alter, words) in cases {
+        let mut cp: Checkpoint = serde_json::from_str(&text).unwrap();
+        alter(&mut cp.state);
+        cp.checksum = None;
+        cp.save(dir).unwrap(); // sealed again: the checksum matches the altered content
+        let err = Checkpoint::load(dir, &problem).unwrap_err().to_string();
+        assert!(
+            err.contains("does not describe a run") && err.contains(words),
+            "{words}: {err}"
+        );
+    }
+}
