@@ -173,14 +173,20 @@ pub struct Run {
     scenario: Scenario,
     sim: Simulation,
     stop: Arc<AtomicBool>,
-    recorder: Option<Recorder>,
     layout: Option<PathBuf>,
+    summary_path: Option<PathBuf>,
+    final_path: Option<PathBuf>,
+    /// What is fed after each step.
+    outputs: Outputs,
+}
+
+/// The outputs of a [`Run`] fed after each step.
+struct Outputs {
+    recorder: Option<Recorder>,
     tables: Option<RunTables>,
     live: Option<LiveRun>,
     restart_file: Option<PathBuf>,
     checkpoints: CheckpointsWritten,
-    summary_path: Option<PathBuf>,
-    final_path: Option<PathBuf>,
     clamp_watch: Option<(ClampWatch, f64)>,
     progress: Option<Progress>,
     /// The first error of an output (the run stops at it; it is reported at the end).
@@ -286,18 +292,20 @@ impl Run {
             scenario: plan.scenario,
             sim,
             stop,
-            recorder,
             layout,
-            tables,
-            live,
-            restart_file,
-            checkpoints: CheckpointsWritten::default(),
             summary_path: plan.summary,
             final_path: plan.final_state,
-            clamp_watch,
-            progress,
-            output_error: None,
-            kill_after,
+            outputs: Outputs {
+                recorder,
+                tables,
+                live,
+                restart_file,
+                checkpoints: CheckpointsWritten::default(),
+                clamp_watch,
+                progress,
+                output_error: None,
+                kill_after,
+            },
         })
     }
 
@@ -332,7 +340,7 @@ impl Run {
         until: Until,
         observe: &mut dyn FnMut(&Simulation) -> ControlFlow<()>,
     ) -> Result<(), SimError> {
-        if self.output_error.is_some() {
+        if self.outputs.output_error.is_some() {
             let c = self.sim.clock();
             return Err(SimError::Interrupted {
                 step: c.step,
@@ -349,29 +357,9 @@ impl Run {
             scenario,
             sim,
             stop,
-            recorder,
-            tables,
-            live,
-            restart_file,
-            checkpoints,
-            clamp_watch,
-            progress,
-            output_error,
-            kill_after,
+            outputs,
             ..
         } = self;
-        let outputs = &mut Outputs {
-            scenario,
-            recorder,
-            tables,
-            live,
-            restart_file,
-            checkpoints,
-            clamp_watch,
-            progress,
-            output_error,
-            kill_after: *kill_after,
-        };
         let _advancing = signals::Advancing::enter();
         let stuck_at = std::env::var("AGGLO_TEST_STUCK_AT_STEP")
             .ok()
@@ -384,7 +372,7 @@ impl Run {
                 }
             }
             signals::step_done();
-            if outputs.observe(s).is_break() || observe(s).is_break() {
+            if outputs.observe(scenario, s).is_break() || observe(s).is_break() {
                 return ControlFlow::Break(());
             }
             if stop.load(Ordering::SeqCst) {
@@ -404,11 +392,11 @@ impl Run {
     /// the recording gets its last state, outcome and summary section, the live view its
     /// last frame, the tables their last sample; then the final state and summary files.
     pub fn finish(mut self, outcome: &Result<(), SimError>) -> RunEnd {
-        if let Some(bar) = self.progress.take() {
+        if let Some(bar) = self.outputs.progress.take() {
             bar.finish();
         }
-        let mut error = self.output_error.take();
-        let recording = match self.recorder.take() {
+        let mut error = self.outputs.output_error.take();
+        let recording = match self.outputs.recorder.take() {
             Some(r) => {
                 let path = r.path().to_path_buf();
                 match r.finish(&self.sim, outcome) {
@@ -421,12 +409,12 @@ impl Run {
             }
             None => None,
         };
-        if let Some(l) = self.live.take() {
+        if let Some(l) = self.outputs.live.take() {
             l.finish(&self.sim, outcome);
         }
         // A table whose writer failed during the run fails again here: the first error
         // is the one told.
-        if let Some(t) = self.tables.take()
+        if let Some(t) = self.outputs.tables.take()
             && let Err(e) = t.finish(&self.sim)
         {
             error.get_or_insert(e);
@@ -447,30 +435,19 @@ impl Run {
             summary,
             recording,
             layout: self.layout,
-            checkpoints: self.restart_file.map(|p| (p, self.checkpoints)),
+            checkpoints: self
+                .outputs
+                .restart_file
+                .map(|p| (p, self.outputs.checkpoints)),
             output_error: error,
             sim: self.sim,
         }
     }
 }
 
-/// The outputs fed after each step (the borrowed parts of a [`Run`]).
-struct Outputs<'a> {
-    scenario: &'a Scenario,
-    recorder: &'a mut Option<Recorder>,
-    tables: &'a mut Option<RunTables>,
-    live: &'a mut Option<LiveRun>,
-    restart_file: &'a Option<PathBuf>,
-    checkpoints: &'a mut CheckpointsWritten,
-    clamp_watch: &'a mut Option<(ClampWatch, f64)>,
-    progress: &'a mut Option<Progress>,
-    output_error: &'a mut Option<anyhow::Error>,
-    kill_after: Option<u64>,
-}
-
-impl Outputs<'_> {
+impl Outputs {
     /// After a step: progress, warnings, live frame, recording, tables, checkpoint.
-    fn observe(&mut self, s: &Simulation) -> ControlFlow<()> {
+    fn observe(&mut self, scenario: &Scenario, s: &Simulation) -> ControlFlow<()> {
         if let Some(bar) = self.progress.as_mut() {
             bar.update(s);
         }
@@ -481,7 +458,7 @@ impl Outputs<'_> {
                 s.counters().clamped_steps,
                 std::time::Instant::now(),
             ) {
-                let warning = clamping_warning(self.scenario, *dt_min, c.time, window);
+                let warning = clamping_warning(scenario, *dt_min, c.time, window);
                 // Above the progress bar, which also draws on stderr.
                 match self.progress.as_ref() {
                     Some(bar) => bar.suspend(|| eprintln!("{warning}")),
@@ -495,27 +472,27 @@ impl Outputs<'_> {
         if let Some(r) = self.recorder.as_mut()
             && let Err(e) = r.observe(s)
         {
-            *self.output_error = Some(e);
+            self.output_error = Some(e);
             return ControlFlow::Break(());
         }
         if let Some(t) = self.tables.as_mut()
             && let Err(e) = t.observe(s)
         {
-            *self.output_error = Some(e);
+            self.output_error = Some(e);
             return ControlFlow::Break(());
         }
-        if let (Some(path), Some(snapshot)) = (self.restart_file, s.restart_snapshot()) {
+        if let (Some(path), Some(snapshot)) = (&self.restart_file, s.restart_snapshot()) {
             let start = std::time::Instant::now();
-            match crate::restart::write(path, self.scenario, snapshot) {
+            match crate::restart::write(path, scenario, snapshot) {
                 Ok(bytes) => {
-                    let c = &mut *self.checkpoints;
+                    let c = &mut self.checkpoints;
                     c.count += 1;
                     c.bytes = bytes;
                     c.time = snapshot.time();
                     c.writing_seconds += start.elapsed().as_secs_f64();
                 }
                 Err(e) => {
-                    *self.output_error = Some(e);
+                    self.output_error = Some(e);
                     return ControlFlow::Break(());
                 }
             }
