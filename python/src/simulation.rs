@@ -128,11 +128,16 @@ impl Simulation {
 }
 
 impl Inner {
-    fn sim(&self) -> &agglo::schedule::Simulation {
+    /// The simulation; an error when the run could not be rebuilt (a failed `run()` with
+    /// new outputs or a hook added, after the old run was dropped).
+    fn sim(&self) -> PyResult<&agglo::schedule::Simulation> {
         match &self.state {
-            State::Running(run) => run.sim(),
-            State::Done(done) => &done.sim,
-            State::Switching => unreachable!("switching is never observed"),
+            State::Running(run) => Ok(run.sim()),
+            State::Done(done) => Ok(&done.sim),
+            State::Switching => Err(AggloError::new_err(
+                "this simulation could not be rebuilt with the outputs or hooks asked \
+                 (the error was raised then): make a new Simulation",
+            )),
         }
     }
 
@@ -519,7 +524,7 @@ impl Simulation {
                     "{name}: hooks are added before the first step"
                 )));
             }
-            let now = inner.sim().clock().time;
+            let now = inner.sim()?.clock().time;
             inner.hooks.push(Hook::new(kind, every, function, now));
             inner.rebuild()
         })
@@ -530,7 +535,7 @@ impl Simulation {
     fn close(&self) -> PyResult<()> {
         guard(|| {
             let mut inner = self.lock()?;
-            let c = inner.sim().clock();
+            let c = inner.sim()?.clock();
             inner.finish(&Err(SimError::Interrupted {
                 step: c.step,
                 time: c.time,
@@ -600,13 +605,13 @@ impl Simulation {
     /// Simulated time [s].
     #[getter]
     fn t(&self) -> PyResult<f64> {
-        Ok(self.lock()?.sim().clock().time)
+        Ok(self.lock()?.sim()?.clock().time)
     }
 
     /// Steps taken (events, on the event core).
     #[getter]
     fn steps(&self) -> PyResult<u64> {
-        Ok(self.lock()?.sim().clock().step)
+        Ok(self.lock()?.sim()?.clock().step)
     }
 
     /// True once T is reached.
@@ -625,7 +630,7 @@ impl Simulation {
 
     /// The counters (impacts, bonds, bounces, …) as JSON text.
     fn counters_json(&self) -> PyResult<String> {
-        let counters = self.lock()?.sim().counters();
+        let counters = self.lock()?.sim()?.counters();
         serde_json::to_string(&counters).map_err(|e| agglo_error(e.into()))
     }
 
@@ -637,7 +642,7 @@ impl Simulation {
             let summary = match &inner.state {
                 State::Done(done) => done.summary.clone(),
                 _ => {
-                    let sim = inner.sim();
+                    let sim = inner.sim()?;
                     agglo::observables::Summary::new(sim, &sim.bodies())
                 }
             };
@@ -648,14 +653,14 @@ impl Simulation {
     /// The pipeline: the core, the systems in order, and why the others are left out.
     fn pipeline_json(&self) -> PyResult<String> {
         let inner = self.lock()?;
-        serde_json::to_string(inner.sim().pipeline()).map_err(|e| agglo_error(e.into()))
+        serde_json::to_string(inner.sim()?.pipeline()).map_err(|e| agglo_error(e.into()))
     }
 
     /// Every body now, id-sorted, as a dict of arrays (the `--final-state` columns).
     fn bodies<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         guard(|| {
             let inner = self.lock()?;
-            let sim = inner.sim();
+            let sim = inner.sim()?;
             let (bodies, carried) = py.detach(|| (sim.body_columns(), sim.carried()));
             crate::columns::bodies_columns(py, bodies, &carried)
         })
@@ -665,7 +670,7 @@ impl Simulation {
     /// the reference of `bodies()`'s cost in python/bench.py.
     fn _time_bodies_read(&self, py: Python<'_>) -> PyResult<f64> {
         let inner = self.lock()?;
-        let sim = inner.sim();
+        let sim = inner.sim()?;
         Ok(py.detach(|| {
             let start = Instant::now();
             let bodies = sim.bodies();
