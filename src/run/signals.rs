@@ -120,12 +120,15 @@ fn now_ns() -> u64 {
     EPOCH.get_or_init(Instant::now).elapsed().as_nanos() as u64
 }
 
-/// A step ended (called by the run loop after each step).
+/// A step ended (called by the run loop after each step). Runs on several threads at
+/// once (an ensemble, the task farm) share these counters: another thread's step may
+/// have ended after `now` was read, hence the saturating difference (a plain one
+/// overflowed and panicked in debug builds as soon as two runs stepped together).
 pub fn step_done() {
     let now = now_ns();
     let last = LAST_STEP_END_NS.swap(now, Ordering::SeqCst);
     if last > 0 {
-        LONGEST_STEP_NS.fetch_max(now - last, Ordering::SeqCst);
+        LONGEST_STEP_NS.fetch_max(now.saturating_sub(last), Ordering::SeqCst);
     }
     STEPS_DONE.fetch_add(1, Ordering::SeqCst);
 }

@@ -179,3 +179,28 @@ fn a_second_signal_ends_the_run_at_once() {
     assert_eq!(report["scenario"], "quick_demo");
     assert!(report["channels"][0]["messages"].as_u64().unwrap() > 0);
 }
+
+/// Runs on several threads at once share the stop watchdog's step counters: a step that
+/// ended on one thread after another read the clock made `now - last` overflow (a panic
+/// in debug builds, inside every threaded ensemble of the Python module).
+#[test]
+fn runs_stepping_on_several_threads_at_once() {
+    use agglo::run::{Run, RunPlan, Until};
+    use std::ops::ControlFlow;
+    let text = std::fs::read_to_string("scenarios/quick_demo.json").unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    // About 2·10⁴ steps a run, so that two threads' step ends interleave many times.
+    crate::common::merge(&mut v, serde_json::json!({ "cloud": { "count": 2000 } }));
+    let s = agglo::prelude::Scenario::from_value(v).unwrap();
+    std::thread::scope(|scope| {
+        for _ in 0..2 {
+            scope.spawn(|| {
+                let plan = RunPlan::new(s.clone()).unwrap();
+                let mut run = Run::start(plan, Default::default()).unwrap();
+                let outcome = run.advance(Until::End, &mut |_| ControlFlow::Continue(()));
+                outcome.unwrap();
+                assert!(run.is_finished());
+            });
+        }
+    });
+}
