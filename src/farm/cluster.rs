@@ -221,6 +221,7 @@ impl Cluster {
             let mut backoff = Backoff(0);
             loop {
                 if let Some((id, output)) = local.try_result() {
+                    let output = output.map_err(FarmError::Panicked)?;
                     local_running -= 1;
                     if let Some((task, _, _)) = running.remove(&id) {
                         dispatcher.complete(task, output);
@@ -355,7 +356,16 @@ impl Cluster {
                 backoff = Backoff(0);
                 continue;
             }
-            if let Some((key, (output, queued, seconds))) = local.try_result() {
+            if let Some((key, result)) = local.try_result() {
+                let (output, queued, seconds) = match result {
+                    Ok(done) => done,
+                    Err(message) => {
+                        eprintln!(
+                            "agglo: a task panicked on this rank (a bug in agglo): {message}"
+                        );
+                        return 1;
+                    }
+                };
                 let (batch, id) = keys.remove(&key).unwrap_or((0, 0));
                 let bytes = encode(&Envelope {
                     batch,

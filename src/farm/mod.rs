@@ -54,6 +54,8 @@ pub enum FarmError {
     Stalled,
     #[error("MPI: {0}")]
     Mpi(String),
+    #[error("a task panicked (a bug in agglo, please report it): {0}")]
+    Panicked(String),
 }
 
 /// Where a batch runs: `threads` worker threads here (0 = one per core), plus every
@@ -93,7 +95,8 @@ impl<'a> Workers<'a> {
 /// coordinates. Shared by the local farm and by every rank of a cluster.
 pub(crate) struct LocalPool<'s, T, O> {
     tasks: Option<mpsc::Sender<(u64, T)>>,
-    results: mpsc::Receiver<(u64, O)>,
+    /// Each task's output, or the message of the panic it ended in.
+    results: mpsc::Receiver<(u64, Result<O, String>)>,
     pub(crate) threads: usize,
     _scope: std::marker::PhantomData<&'s ()>,
 }
@@ -121,7 +124,12 @@ impl<'s, T: Send + 's, O: Send + 's> LocalPool<'s, T, O> {
                         }
                     };
                     let Ok((id, task)) = next else { return };
-                    if result_tx.send((id, work(&task))).is_err() {
+                    // A panicking task is reported, not lost: a worker that unwound would
+                    // never send its result, and the coordinator would wait for it forever.
+                    let output =
+                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(&task)))
+                            .map_err(|payload| panic_message(payload.as_ref()));
+                    if result_tx.send((id, output)).is_err() {
                         return;
                     }
                 }
@@ -142,12 +150,12 @@ impl<'s, T: Send + 's, O: Send + 's> LocalPool<'s, T, O> {
         }
     }
 
-    pub(crate) fn wait(&self) -> Option<(u64, O)> {
+    pub(crate) fn wait(&self) -> Option<(u64, Result<O, String>)> {
         self.results.recv().ok()
     }
 
     #[cfg_attr(not(feature = "mpi"), allow(dead_code))]
-    pub(crate) fn try_result(&self) -> Option<(u64, O)> {
+    pub(crate) fn try_result(&self) -> Option<(u64, Result<O, String>)> {
         self.results.try_recv().ok()
     }
 
@@ -155,6 +163,15 @@ impl<'s, T: Send + 's, O: Send + 's> LocalPool<'s, T, O> {
     pub(crate) fn close(&mut self) {
         self.tasks = None;
     }
+}
+
+/// The text of a panic's payload.
+pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".into())
 }
 
 /// The number of worker threads for `threads` (0 = one per core).
@@ -225,6 +242,7 @@ fn coordinate_local<D: Dispatcher>(
         let Some((id, output)) = local.wait() else {
             return Err(FarmError::Pool("a worker thread stopped".into()));
         };
+        let output = output.map_err(FarmError::Panicked)?;
         if let Some(task) = running.remove(&id) {
             dispatcher.complete(task, output);
         }
@@ -334,6 +352,22 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_panicking_task_is_an_error_not_a_hang() {
+        for threads in [1, 2] {
+            let tasks: Vec<u64> = (0..6).collect();
+            let work = |t: &u64| -> u64 {
+                assert!(*t != 3, "task three fails");
+                *t
+            };
+            let e = map(&Workers::local(threads), tasks, &work).unwrap_err();
+            assert!(
+                matches!(&e, FarmError::Panicked(m) if m.contains("task three fails")),
+                "{e}"
+            );
+        }
+    }
 
     #[test]
     fn map_returns_results_in_task_order_for_any_thread_count() {
