@@ -157,6 +157,8 @@ impl Inner {
         plan.command_line = outputs
             .command_line
             .unwrap_or_else(|| "python: agglo.Simulation.run".into());
+        // Kept only once every output is accepted (an error leaves the simulation as it was).
+        let mut memory_tables = Vec::new();
         for (name, path) in outputs.tables {
             if !TABLES.contains(&name.as_str()) {
                 return Err(scenario_error(format!(
@@ -171,7 +173,7 @@ impl Inner {
                     std::fs::create_dir_all(&*dir).map_err(|e| {
                         agglo_error(anyhow::anyhow!("creating {}: {e}", dir.display()))
                     })?;
-                    self.memory_tables.push(name.clone());
+                    memory_tables.push(name.clone());
                     dir.join(format!("{name}.parquet"))
                 }
             };
@@ -216,6 +218,7 @@ impl Inner {
             plan.live = Some(options);
         }
         self.plan = plan;
+        self.memory_tables = memory_tables;
         self.has_outputs = true;
         self.rebuild()
     }

@@ -329,3 +329,14 @@ def test_the_kernel_from_python_is_agglo_kernels_file(scenarios, agglo_bin, tmp_
     assert k.units == "cgs"
     with pytest.raises(agglo.ScenarioError, match="bins"):
         agglo.kernel.measure(s, "edges:3,2,1", tmp_path / "bad.npz")
+
+
+def test_refused_outputs_leave_the_simulation_as_it_was(scenarios):
+    sim = agglo.Simulation(quick(scenarios), seed=5)
+    # Taken in name order: `series` is accepted before `unknown` is refused.
+    with pytest.raises(agglo.ScenarioError, match="no table `unknown`"):
+        sim.run(tables=["series", "unknown"])
+    assert sim.run(tables=["sizes"])
+    assert len(sim.sizes()) > 0
+    with pytest.raises(agglo.ScenarioError, match="kept: sizes"):
+        sim.series()
