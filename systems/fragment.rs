@@ -49,21 +49,26 @@ pub fn surface_energy(gamma: f64, radius: f64, pieces: u64) -> f64 {
     gamma * 4.0 * std::f64::consts::PI * radius * radius * ((pieces as f64).cbrt() - 1.0)
 }
 
-/// Offsets of `count` pieces of radius `piece_radius` around a centre, pairwise
-/// non-overlapping (Fibonacci-sphere directions scaled so the closest pair just touches).
-pub fn piece_offsets(count: usize, piece_radius: f64) -> Vec<DVec3> {
-    if count <= 1 {
-        return vec![DVec3::ZERO; count];
-    }
+/// `count` unit directions spread evenly over the sphere (the Fibonacci lattice).
+fn fibonacci_directions(count: usize) -> Vec<DVec3> {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let dirs: Vec<DVec3> = (0..count)
+    (0..count)
         .map(|i| {
             let z = 1.0 - 2.0 * (i as f64 + 0.5) / count as f64;
             let r = (1.0 - z * z).max(0.0).sqrt();
             let phi = golden * i as f64;
             DVec3::new(r * phi.cos(), r * phi.sin(), z)
         })
-        .collect();
+        .collect()
+}
+
+/// Offsets of `count` pieces of radius `piece_radius` around a centre, pairwise
+/// non-overlapping (Fibonacci-sphere directions scaled so the closest pair just touches).
+pub fn piece_offsets(count: usize, piece_radius: f64) -> Vec<DVec3> {
+    if count <= 1 {
+        return vec![DVec3::ZERO; count];
+    }
+    let dirs = fibonacci_directions(count);
     let closest = closest_distance(&dirs);
     // Slightly more than touching so rounding never makes the pieces overlap.
     let scale = 2.0 * piece_radius * (1.0 + 1e-9) / closest;
@@ -247,15 +252,7 @@ mod tests {
     #[test]
     fn the_closest_distance_is_the_all_pairs_minimum_bit_for_bit() {
         for count in [2, 3, 5, 17, 100, 1000, 2500] {
-            let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-            let dirs: Vec<DVec3> = (0..count)
-                .map(|i| {
-                    let z = 1.0 - 2.0 * (i as f64 + 0.5) / count as f64;
-                    let r = (1.0 - z * z).max(0.0).sqrt();
-                    let phi = golden * i as f64;
-                    DVec3::new(r * phi.cos(), r * phi.sin(), z)
-                })
-                .collect();
+            let dirs = fibonacci_directions(count);
             let mut brute = f64::INFINITY;
             for i in 0..count {
                 for j in i + 1..count {

@@ -41,9 +41,7 @@ pub fn ensemble<'py>(
             }
         }
         let mut base = scenario.inner.clone();
-        let o = &mut base.output;
-        (o.summary, o.final_state, o.mcap, o.restart) = (None, None, None, None);
-        (o.series, o.sizes, o.snapshots, o.collisions) = (None, None, None, None);
+        base.output = base.output.without_files();
         // Checked once here, so that a scene that cannot be built fails before any run.
         base.pipeline().map_err(scenario_error)?;
         let dir = std::env::temp_dir().join(format!(

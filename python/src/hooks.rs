@@ -83,11 +83,6 @@ pub struct Hook {
     last_call: Option<f64>,
 }
 
-/// A hook's exception, with where the run was.
-pub struct Raised {
-    pub error: PyErr,
-}
-
 impl Hook {
     pub fn new(kind: Kind, every: Every, function: Py<PyAny>, now: f64) -> Self {
         let next = match every {
@@ -121,7 +116,7 @@ pub fn subscribe(builder: &mut SimBuilder, hooks: &[Hook]) {
 /// After a step (without the GIL): collect its messages, and call every hook that is
 /// due (taking the GIL). `end`: the run is over (its last step already observed): call
 /// every hook with what it still holds.
-pub fn observe(hooks: &mut [Hook], sim: &Simulation, end: bool) -> Result<(), Raised> {
+pub fn observe(hooks: &mut [Hook], sim: &Simulation, end: bool) -> PyResult<()> {
     let clock = sim.clock();
     for hook in hooks.iter_mut() {
         if !end {
@@ -150,9 +145,8 @@ pub fn observe(hooks: &mut [Hook], sim: &Simulation, end: bool) -> Result<(), Ra
         }
         hook.last_call = Some(clock.time);
         let batch = std::mem::take(&mut hook.batch);
-        Python::attach(|py| call(py, hook, batch, sim)).map_err(|error| Raised {
-            error: with_place(error, hook.kind, clock.step, clock.time),
-        })?;
+        Python::attach(|py| call(py, hook, batch, sim))
+            .map_err(|error| with_place(error, hook.kind, clock.step, clock.time))?;
     }
     Ok(())
 }

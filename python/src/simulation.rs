@@ -120,6 +120,39 @@ impl Outputs {
 }
 
 impl Simulation {
+    /// The run of `scenario` (resumed from `resume`, carrying `carry`) with the outputs
+    /// its `output` section names, as `agglo run` takes them.
+    fn built(
+        scenario: agglo::scenario::Scenario,
+        resume: Option<agglo::restart::RestartSnapshot>,
+        carry: Vec<crate::carry::Spec>,
+    ) -> PyResult<Self> {
+        let plan = RunPlan::new(scenario.clone()).map_err(scenario_error)?;
+        let outputs = PlanOutputs {
+            tables: plan.tables,
+            record: plan.recording,
+            summary: plan.summary,
+            final_state: plan.final_state,
+            ..Default::default()
+        };
+        let mut inner = Inner {
+            scenario,
+            state: State::Switching,
+            has_outputs: false,
+            plan: outputs,
+            hooks: Vec::new(),
+            resume,
+            stepped: false,
+            carry,
+            memory_dir: None,
+            memory_tables: Vec::new(),
+        };
+        inner.rebuild()?;
+        Ok(Self {
+            inner: Mutex::new(inner),
+        })
+    }
+
     fn lock(&self) -> PyResult<MutexGuard<'_, Inner>> {
         self.inner.try_lock().map_err(|_| {
             AggloError::new_err("this simulation is running in another thread; wait for it")
@@ -340,7 +373,7 @@ fn advance(
             if !hooks.is_empty()
                 && let Err(r) = crate::hooks::observe(hooks, s, false)
             {
-                raised = Some(r.error);
+                raised = Some(r);
                 return ControlFlow::Break(());
             }
             if steps.is_multiple_of(CLOCK_CHECK_STEPS) && last_check.elapsed() >= SIGNAL_CHECK {
@@ -359,7 +392,7 @@ fn advance(
             && !hooks.is_empty()
             && let Err(r) = crate::hooks::observe(hooks, run.sim(), true)
         {
-            raised = Some(r.error);
+            raised = Some(r);
         }
         (outcome, raised)
     })
@@ -381,32 +414,7 @@ impl Simulation {
             if let Some(seed) = seed {
                 scenario.seed = seed;
             }
-            let carry = specs(carry)?;
-            let plan = RunPlan::new(scenario.clone()).map_err(scenario_error)?;
-            // The scenario's own outputs (its `output` section), as `agglo run` takes them.
-            let outputs = PlanOutputs {
-                tables: plan.tables.clone(),
-                record: plan.recording.clone(),
-                summary: plan.summary.clone(),
-                final_state: plan.final_state.clone(),
-                ..Default::default()
-            };
-            let mut inner = Inner {
-                scenario,
-                state: State::Switching,
-                has_outputs: false,
-                plan: outputs,
-                hooks: Vec::new(),
-                resume: None,
-                stepped: false,
-                carry,
-                memory_dir: None,
-                memory_tables: Vec::new(),
-            };
-            inner.rebuild()?;
-            Ok(Self {
-                inner: Mutex::new(inner),
-            })
+            Self::built(scenario, None, specs(carry)?)
         })
     }
 
@@ -580,28 +588,8 @@ impl Simulation {
             let (mut scenario, snapshot) =
                 agglo::restart::decode(std::path::Path::new("<pickle>"), bytes)
                     .map_err(scenario_error)?;
-            let o = &mut scenario.output;
-            (o.summary, o.final_state, o.mcap, o.restart) = (None, None, None, None);
-            (o.series, o.sizes, o.snapshots, o.collisions) = (None, None, None, None);
-            let mut inner = Inner {
-                scenario,
-                state: State::Switching,
-                has_outputs: false,
-                plan: PlanOutputs::default(),
-                hooks: Vec::new(),
-                resume: Some(snapshot),
-                stepped: false,
-                carry: specs(carry)?,
-                memory_dir: None,
-                memory_tables: Vec::new(),
-            };
-            inner.plan.tables = RunPlan::new(inner.scenario.clone())
-                .map_err(scenario_error)?
-                .tables;
-            inner.rebuild()?;
-            Ok(Self {
-                inner: Mutex::new(inner),
-            })
+            scenario.output = scenario.output.without_files();
+            Self::built(scenario, Some(snapshot), specs(carry)?)
         })
     }
 

@@ -512,9 +512,7 @@ impl Live {
         mass: f64,
         now: f64,
     ) -> Result<(), KernelError> {
-        let k = grid
-            .class_of(mass)
-            .ok_or_else(|| outside(grid, now, id, mass))?;
+        let k = class_at(grid, id, mass, now)?;
         if self.count[k] == 0 {
             // Only bodies made or removed without a message (an extension's) lead here.
             return Err(KernelError::Untracked { id, time: now });
@@ -533,9 +531,7 @@ impl Live {
         mass: f64,
         now: f64,
     ) -> Result<(), KernelError> {
-        let k = grid
-            .class_of(mass)
-            .ok_or_else(|| outside(grid, now, id, mass))?;
+        let k = class_at(grid, id, mass, now)?;
         self.touch(window, k, now);
         self.count[k] += 1;
         Ok(())
@@ -556,12 +552,8 @@ impl Live {
             if !window.contains(m.time) {
                 continue;
             }
-            let i = grid
-                .class_of(m.mass_a)
-                .ok_or_else(|| outside(grid, m.time, m.id_a, m.mass_a))?;
-            let j = grid
-                .class_of(m.mass_b)
-                .ok_or_else(|| outside(grid, m.time, m.id_b, m.mass_b))?;
+            let i = class_at(grid, m.id_a, m.mass_a, m.time)?;
+            let j = class_at(grid, m.id_b, m.mass_b, m.time)?;
             let p = pair(classes, i, j);
             // At most one impact per body per step, so a fragmentation of either body
             // this step is this impact's doing (as the collision log reads it).
@@ -606,9 +598,7 @@ impl Live {
                 };
                 for f in [frag_a, frag_b].into_iter().flatten() {
                     let piece = f.parent_mass / f.children.len() as f64;
-                    let k = grid
-                        .class_of(piece)
-                        .ok_or_else(|| outside(grid, f.time, f.parent, piece))?;
+                    let k = class_at(grid, f.parent, piece, f.time)?;
                     put(f.parent_mass, k);
                 }
                 if frag_a.is_none() {
@@ -681,6 +671,12 @@ impl Live {
             }
         }
     }
+}
+
+/// The class of body `id` of mass `mass` at `time`, or the error naming it outside the grid.
+fn class_at(grid: &MassGrid, id: u64, mass: f64, time: f64) -> Result<usize, KernelError> {
+    grid.class_of(mass)
+        .ok_or_else(|| outside(grid, time, id, mass))
 }
 
 fn outside(grid: &MassGrid, time: f64, id: u64, mass: f64) -> KernelError {

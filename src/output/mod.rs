@@ -145,6 +145,25 @@ fn is_auto(bins: &SizeBins) -> bool {
     *bins == SizeBins::Auto
 }
 
+impl Output {
+    /// This section with every file path cleared (summary, final state, recording,
+    /// tables, checkpoints), keeping what says how the run is sampled and recorded: for
+    /// runs that must not write the files a scenario names (an ensemble's, a copy's).
+    pub fn without_files(&self) -> Self {
+        Self {
+            summary: None,
+            final_state: None,
+            mcap: None,
+            series: None,
+            sizes: None,
+            snapshots: None,
+            collisions: None,
+            restart: None,
+            ..self.clone()
+        }
+    }
+}
+
 /// The flags of `agglo run` that ask for the sampled tables; each overrides its field
 /// of the `output` section.
 #[derive(clap::Args, Debug, Clone, Default)]
