@@ -7,6 +7,7 @@
 
 pub mod collisions;
 pub mod offload;
+mod parquet_sink;
 pub mod run;
 pub mod sampling;
 pub mod schema;

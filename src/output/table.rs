@@ -3,10 +3,10 @@
 //!
 //! CSV: a header line, then one line per row; floats in shortest round-trip form
 //! (`ryu`), so they parse back to the same bits; counts as integers; no quoting
-//! (no value holds a comma). Parquet: one required column per field (DOUBLE, INT64 or
-//! UTF8 BYTE_ARRAY), zstd-compressed, through the crate's low-level column writer (no
-//! Arrow). Rows are buffered per column and written as a row group every
-//! [`ROW_GROUP_ROWS`] rows, so memory stays bounded however long the run.
+//! (no value holds a comma); a batch of rows reaches the file in one write, so a kill
+//! leaves whole rows. Parquet ([`super::parquet_sink`]): rows are buffered per column
+//! and written as a row group every [`ROW_GROUP_ROWS`] rows, so memory stays bounded
+//! however long the run, and the file stays readable if the run is killed.
 //!
 //! **Threads.** [`TableWriter::row`] only copies the cells into a batch; every
 //! [`BATCH_ROWS`] rows the batch goes to the table's writer thread
@@ -17,22 +17,16 @@
 use std::fs::File;
 use std::io::Write;
 use std::path::Path;
-use std::sync::Arc;
 
 use anyhow::{Context, bail, ensure};
-use parquet::basic::{Compression, ZstdLevel};
-use parquet::data_type::{ByteArray, ByteArrayType, DoubleType, Int64Type};
-use parquet::file::properties::WriterProperties;
 use parquet::file::reader::FileReader;
 use parquet::file::serialized_reader::SerializedFileReader;
-use parquet::file::writer::SerializedFileWriter;
 use parquet::record::Field;
-use parquet::schema::parser::parse_message_type;
 
 use super::offload::{Offload, Sink, Threading};
+use super::parquet_sink::ParquetSink;
 
-/// Rows buffered before a Parquet row group is written (13 DOUBLE columns: ~14 MB).
-pub const ROW_GROUP_ROWS: usize = 131_072;
+pub use super::parquet_sink::ROW_GROUP_ROWS;
 
 /// Rows copied on the simulation thread before they are handed to the writer thread
 /// (13 columns: 0.85 MB a batch): few enough hand-overs that they cost nothing, small
@@ -176,10 +170,7 @@ impl Sink for TableSink {
     fn finish(self) -> anyhow::Result<()> {
         match self.format {
             Format::Csv(mut out) => out.write_rows()?,
-            Format::Parquet(mut p) => {
-                p.flush()?;
-                p.writer.close()?;
-            }
+            Format::Parquet(p) => p.finish()?,
         }
         Ok(())
     }
@@ -206,61 +197,26 @@ enum Format {
     Parquet(Box<ParquetSink>),
 }
 
-struct ParquetSink {
-    writer: SerializedFileWriter<File>,
-    buffers: Vec<Buffer>,
-    buffered: usize,
-}
-
-enum Buffer {
-    F(Vec<f64>),
-    I(Vec<i64>),
-    S(Vec<ByteArray>),
-}
-
 impl TableWriter {
     /// Create `path` for rows of `columns` (Parquet if it ends in `.parquet`, else CSV);
     /// `name` names the Parquet schema.
     pub fn create(path: &Path, name: &str, columns: &[Column]) -> anyhow::Result<Self> {
         let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
         let format = if is_parquet(path) {
-            let fields: String = columns
-                .iter()
-                .map(|c| match c.kind {
-                    Kind::Float => format!("REQUIRED DOUBLE {};", c.name),
-                    Kind::Int => format!("REQUIRED INT64 {};", c.name),
-                    Kind::Id => format!("REQUIRED INT64 {} (INTEGER(64,false));", c.name),
-                    Kind::Text => format!("REQUIRED BYTE_ARRAY {} (UTF8);", c.name),
-                })
-                .collect();
-            let schema = Arc::new(parse_message_type(&format!(
-                "message {name} {{ {fields} }}"
-            ))?);
-            let props = WriterProperties::builder()
-                .set_compression(Compression::ZSTD(ZstdLevel::default()))
-                .build();
-            let writer = SerializedFileWriter::new(file, schema, Arc::new(props))?;
-            let buffers = columns
-                .iter()
-                .map(|c| match c.kind {
-                    Kind::Float => Buffer::F(Vec::new()),
-                    Kind::Int | Kind::Id => Buffer::I(Vec::new()),
-                    Kind::Text => Buffer::S(Vec::new()),
-                })
-                .collect();
-            Format::Parquet(Box::new(ParquetSink {
-                writer,
-                buffers,
-                buffered: 0,
-            }))
+            let sink = ParquetSink::create(file, name, columns)
+                .with_context(|| format!("writing {}", path.display()))?;
+            Format::Parquet(Box::new(sink))
         } else {
             let mut out = CsvSink {
                 file,
                 rows: Vec::new(),
             };
             let header: Vec<&str> = columns.iter().map(|c| c.name).collect();
-            // Written with the first rows, on the writer thread (whose errors name the file).
+            // Written now, so that a run killed before its first batch leaves a table
+            // a reader opens (an empty file is not one).
             writeln!(out.rows, "{}", header.join(","))?;
+            out.write_rows()
+                .with_context(|| format!("writing {}", path.display()))?;
             Format::Csv(out)
         };
         let sink = TableSink {
@@ -370,57 +326,8 @@ impl Format {
                 }
                 out.write_all(b"\n")?;
             }
-            Format::Parquet(p) => {
-                for (buffer, cell) in p.buffers.iter_mut().zip(cells) {
-                    match (buffer, cell) {
-                        (Buffer::F(v), Cell::F(x)) => v.push(*x),
-                        (Buffer::I(v), Cell::I(n)) => v.push(*n),
-                        // The column is annotated unsigned: the same 64 bits.
-                        (Buffer::I(v), Cell::U(n)) => v.push(*n as i64),
-                        (Buffer::S(v), Cell::S(s)) => v.push(ByteArray::from(*s)),
-                        _ => bail!("a cell of the wrong kind for its column (a bug)"),
-                    }
-                }
-                p.buffered += 1;
-                if p.buffered >= ROW_GROUP_ROWS {
-                    p.flush()?;
-                }
-            }
+            Format::Parquet(p) => p.row(cells)?,
         }
-        Ok(())
-    }
-}
-
-impl ParquetSink {
-    /// Write the buffered rows as one row group.
-    fn flush(&mut self) -> anyhow::Result<()> {
-        if self.buffered == 0 {
-            return Ok(());
-        }
-        let mut group = self.writer.next_row_group()?;
-        let mut buffers = self.buffers.iter_mut();
-        while let Some(mut column) = group.next_column()? {
-            let buffer = buffers
-                .next()
-                .context("more columns than buffers (a bug)")?;
-            match buffer {
-                Buffer::F(v) => {
-                    column.typed::<DoubleType>().write_batch(v, None, None)?;
-                    v.clear();
-                }
-                Buffer::I(v) => {
-                    column.typed::<Int64Type>().write_batch(v, None, None)?;
-                    v.clear();
-                }
-                Buffer::S(v) => {
-                    column.typed::<ByteArrayType>().write_batch(v, None, None)?;
-                    v.clear();
-                }
-            }
-            column.close()?;
-        }
-        group.close()?;
-        self.buffered = 0;
         Ok(())
     }
 }
