@@ -209,6 +209,10 @@ fn a_recording_and_a_restart_file_carry_the_section() {
             "-q",
             "--final-state",
             &p("b.csv"),
+            // Its checkpoints (the embedded scenario takes them) go here, not to the
+            // working directory.
+            "--restart",
+            &p("b.restart"),
         ],
     );
     assert!(out.status.success(), "{}", stderr(&out));
