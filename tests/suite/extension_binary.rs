@@ -267,6 +267,10 @@ fn scan_sweeps_the_section_and_optimize_searches_it() {
             "2e-8",
             "--points",
             "3",
+            // Two worker threads even on one core: the samples are built off the main
+            // thread, and must get the plugin there too.
+            "--threads",
+            "2",
             "-q",
             "--out",
             &out_dir("scan"),
@@ -309,7 +313,15 @@ fn scan_sweeps_the_section_and_optimize_searches_it() {
 
     let out = run(
         &bin,
-        &["optimize", &problem, "-q", "--out", &out_dir("opt")],
+        &[
+            "optimize",
+            &problem,
+            "--threads",
+            "2",
+            "-q",
+            "--out",
+            &out_dir("opt"),
+        ],
     );
     assert!(out.status.success(), "{}", stderr(&out));
     let best: Value = serde_json::from_str(
