@@ -225,11 +225,20 @@ type BodyData = (
 
 /// Bodies at the current time, for systems that add physics (forces, heating, …).
 ///
-/// ```ignore
-/// fn gas_drag(drag: Res<Drag>, mut bodies: Bodies) {
-///     let decay = (-bodies.dt() / drag.tau).exp();
-///     bodies.update_all(|b| b.velocity = drag.gas + (b.velocity - drag.gas) * decay);
+/// ```
+/// use agglo_engine::bodies::Bodies;
+/// use bevy_ecs::prelude::*;
+/// use glam::DVec3;
+///
+/// /// Relaxation toward a gas velocity u [m/s] with time τ [s] (a plugin's own resource).
+/// #[derive(Resource)]
+/// struct GasPull { gas: DVec3, tau: f64 }
+///
+/// fn gas_pull(pull: Res<GasPull>, mut bodies: Bodies) {
+///     let decay = (-bodies.dt() / pull.tau).exp();
+///     bodies.update_all(|b| b.velocity = pull.gas + (b.velocity - pull.gas) * decay);
 /// }
+/// # let _ = IntoSystem::into_system(gas_pull);
 /// ```
 /// Position, velocity and temperature written in the closure are kept (hardness follows
 /// the temperature); mass, radius, primaries and id are read-only here — bodies change

@@ -15,17 +15,29 @@
 //! - otherwise the impact/heat law's outcome stands.
 //!
 //! Charge is conserved exactly by the rules, so the total at the end equals the total at
-//! the start to rounding; the example checks it to 1e-12 of Σ|q|.
+//! the start to rounding (tests/suite/worked_examples.rs checks it to 1e-12 of Σ|q|).
 //!
-//! Run with `cargo run --release --example charged_grains [-- final.csv]` (the final state,
-//! with a `charge` column, is written if a path is given).
-
-use std::path::Path;
+//! The charge scale q0 is the plugin's section of the scenario, `plugins.charged_grains`
+//! ([`ChargeLaw`]), and this program is the `agglo` command line with the plugin
+//! (`agglo::cli::main_with`): the section is validated, overridden with `--set`, swept by
+//! `scan` and searched by `optimize` as a built-in one is (tests/suite/extension_binary.rs):
+//!
+//! ```text
+//! cargo run --release --example charged_grains -- run scenarios/plugins/charged_grains.json --final-state final.csv
+//! cargo run --release --example charged_grains -- scan scenarios/plugins/charged_grains_inverse.json \
+//!     --gene plugins.charged_grains.q0 --from 0 --to 2e-8 --points 5 --out scan_charge
+//! cargo run --release --example charged_grains -- optimize scenarios/plugins/charged_grains_inverse.json --out best_charge
+//! ```
+//!
+//! (the final state carries a `charge` column).
 
 use agglo::bevy_ecs::prelude::*;
 use agglo::carried::{Carried, Combine, Split};
 use agglo::hooks::{ImpactOutcome, PendingImpacts};
+use agglo::plugins::{Extension, PluginSection, issue};
 use agglo::prelude::*;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 /// Coulomb's constant k = 1/(4π ε0) [N m²/C²].
 const COULOMB: f64 = 8.987_551_792_3e9;
@@ -90,17 +102,41 @@ pub fn initial_charge(q0: f64, id: u64) -> f64 {
     q0 * (2.0 * (z >> 11) as f64 / (1u64 << 53) as f64 - 1.0)
 }
 
-/// The plugin: charges on every body, carried by their rules, and the outcome hook.
-pub struct ChargedGrains {
-    /// Charge scale q0 [C].
+/// The plugin's section of the scenario, `plugins.charged_grains`: the charge law.
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ChargeLaw {
+    /// Charge scale q0 [C]: grain i starts with q0 · u_i, u_i ∈ [−1, 1) a hash of its id.
+    /// 0 leaves every grain neutral (the built-in physics alone).
+    #[serde(default)]
     pub q0: f64,
 }
+
+impl PluginSection for ChargeLaw {
+    fn validate(&self) -> Vec<agglo::error::ValidationIssue> {
+        // Beyond 1e-6 C a micron grain's surface field exceeds any material's breakdown
+        // strength by orders of magnitude: a typo, not a scene.
+        if (0.0..=MAX_CHARGE).contains(&self.q0) {
+            Vec::new()
+        } else {
+            vec![issue("q0", "0 ≤ q0 ≤ 1e-6 C", self.q0)]
+        }
+    }
+}
+
+/// The largest charge scale a scene may give [C].
+pub const MAX_CHARGE: f64 = 1e-6;
+
+/// The plugin: charges on every body, carried by their rules, and the outcome hook;
+/// the charge scale is its section, [`ChargeLaw`].
+pub struct ChargedGrains;
 
 impl SimPlugin for ChargedGrains {
     fn name(&self) -> &'static str {
         "charged_grains"
     }
     fn build(&self, sim: &mut SimBuilder) {
+        let q0 = sim.resource::<ChargeLaw>().q0;
         sim.carry::<Charge>("charge", Combine::Sum, Split::ByMass)
             .init_resource::<ChargeEffects>()
             .add_impact_outcome_systems(coulomb_sticking);
@@ -110,7 +146,7 @@ impl SimPlugin for ChargedGrains {
         for (entity, id) in bodies {
             world
                 .entity_mut(entity)
-                .insert(Charge(initial_charge(self.q0, id)));
+                .insert(Charge(initial_charge(q0, id)));
         }
     }
 }
@@ -143,8 +179,9 @@ fn totals(sim: &Simulation) -> (f64, f64) {
 pub fn run(scenario: &Scenario, q0: f64) -> Result<(Simulation, Report), SimError> {
     let mut builder = Simulation::builder(scenario)?;
     builder
+        .insert_resource(ChargeLaw { q0 })
         .add_default_plugins()
-        .add_plugin(&ChargedGrains { q0 });
+        .add_plugin(&ChargedGrains);
     let mut sim = builder.build()?;
     let (initial_charge, charge_scale) = totals(&sim);
     sim.run()?;
@@ -159,34 +196,9 @@ pub fn run(scenario: &Scenario, q0: f64) -> Result<(Simulation, Report), SimErro
     Ok((sim, report))
 }
 
+/// The `agglo` command line with this plugin: `validate`, `run`, `scan`, `optimize`
+/// and the rest read `plugins.charged_grains` as they read a built-in section.
 #[allow(dead_code)] // the tests include this file for `run`
-fn main() -> anyhow::Result<()> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/quick_demo.json");
-    let scenario = Scenario::load(&path)?;
-    // Coulomb energy at contact of two primaries at q0 comparable with their approach
-    // energy at the scene's speeds (~1e-4 J): charges change outcomes both ways.
-    let (sim, r) = run(&scenario, 1e-8)?;
-    let c = r.counters;
-    println!(
-        "{}: {} impacts ({} bonds, {} bounces), {} fragmentations; {} → {} bodies",
-        scenario.name,
-        c.impacts,
-        c.bonds,
-        c.bounces,
-        c.fragmentations,
-        sim.info().initial_bodies,
-        sim.body_count()
-    );
-    println!(
-        "charges: {} pairs repelled, {} captured; Σq {:e} C → {:e} C (Σ|q| = {:e} C)",
-        r.effects.repelled, r.effects.captured, r.initial_charge, r.final_charge, r.charge_scale
-    );
-    let drift = (r.final_charge - r.initial_charge).abs() / r.charge_scale;
-    anyhow::ensure!(drift <= 1e-12, "charge not conserved: {drift:e} of Σ|q|");
-    println!("charge conserved to {drift:.1e} of Σ|q|");
-    if let Some(out) = std::env::args().nth(1) {
-        agglo::output::write_final_state_with(Path::new(&out), &sim.bodies(), &sim.carried())?;
-        println!("final state with charges: {out}");
-    }
-    Ok(())
+fn main() -> std::process::ExitCode {
+    agglo::cli::main_with([Extension::with_section::<ChargeLaw>(ChargedGrains)])
 }

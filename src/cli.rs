@@ -1,8 +1,11 @@
-//! Command-line definitions (clap) and the handlers they dispatch to. Binary only:
-//! each handler is a thin layer over the library.
+//! The command line: the handlers the clap definitions (src/cli_args.rs) dispatch to,
+//! each a thin layer over the library, and the entry points of a program — `agglo`
+//! itself ([`main_with`] with no extensions) or a user's own binary that adds its
+//! plugins ([`main_with`] with them; docs/extending.md).
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 
 use anyhow::Context;
 use clap::Parser;
@@ -19,8 +22,52 @@ use agglo::run::{Resume, Run, RunEnd, RunPlan, Until};
 
 pub use agglo::cli_args::{Cli, Command, RunArgs, StudyCommand};
 
+/// The `agglo` command with `extensions` beside the built-in physics: every command
+/// (run, validate, schema, scan, optimize, study, kernel) sees them and their scenario
+/// sections, on every worker thread and MPI rank. A user's binary is
+///
+/// ```no_run
+/// # use agglo::prelude::*;
+/// # struct MyPlugin;
+/// # impl SimPlugin for MyPlugin {
+/// #     fn name(&self) -> &'static str { "my_plugin" }
+/// #     fn build(&self, _: &mut SimBuilder) {}
+/// # }
+/// fn main() -> std::process::ExitCode {
+///     agglo::cli::main_with([agglo::plugins::Extension::plugin(MyPlugin)])
+/// }
+/// ```
+///
+/// Errors print with their causes and exit with status 1, as `agglo` does.
+pub fn main_with(extensions: impl IntoIterator<Item = agglo::plugins::Extension>) -> ExitCode {
+    restore_default_sigpipe();
+    for extension in extensions {
+        if let Err(e) = agglo::plugins::register(extension) {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
+    match main() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Rust ignores SIGPIPE, so `println!` into a closed pipe (`agglo … | head`) panics.
+/// Restore the default action: the process ends quietly, like any Unix filter.
+fn restore_default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: called once at start-up, before any thread exists; SIG_DFL is always valid.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 /// Parse arguments and run the chosen command (under `mpirun`, rank 0 runs it and the
-/// other ranks serve its simulations).
+/// other ranks serve its simulations), with the extensions registered so far.
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     let cluster = ranks::join();

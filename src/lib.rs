@@ -25,6 +25,7 @@
 //! All quantities are SI and `f64`.
 
 pub mod charts;
+pub mod cli;
 pub mod cli_args;
 pub mod cloud_file;
 pub mod farm;
@@ -34,12 +35,16 @@ pub mod kernel;
 pub mod live;
 pub mod memory;
 pub mod output;
+pub mod plugins;
 pub mod record;
 pub mod restart;
 pub mod run;
 pub mod scenario;
 pub mod study;
 pub mod validate;
+
+// The command line (src/cli.rs) names this crate `agglo`, as a program using it would.
+extern crate self as agglo;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{

@@ -11,6 +11,7 @@
 //! then checks every range and names the field and the allowed range. Symbols
 //! follow docs/model.md §1: all values SI.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use schemars::JsonSchema;
@@ -21,7 +22,7 @@ use bevy_ecs::prelude::*;
 use crate::error::{ScenarioError, SimError, ValidationIssue};
 pub use crate::output::Output;
 pub use crate::record::Recording;
-use crate::schedule::{Pipeline, Simulation};
+use crate::schedule::Pipeline;
 pub use agglo_engine::cloud::{Cloud, PlacedBody, PrimaryGrain, VelocityDistribution};
 pub use agglo_engine::field::{Drag, Field, Relaxation};
 pub use agglo_engine::resources::BoxGeometry as Domain;
@@ -30,7 +31,6 @@ pub use agglo_engine::scene::{
     ContactRule, CoolingMethod, Core, ImpactsPerStep, Material, Physics, Stepping, TimeControl,
 };
 use agglo_engine::setup::Scene;
-use agglo_systems::DefaultPlugins;
 pub use agglo_systems::diagnostics::Diagnostics;
 pub use agglo_systems::impact::{
     BondTest, DurationLaw, FrictionCap, ImpactModel, PairHardness, RestitutionLaw, Separation,
@@ -68,6 +68,11 @@ pub struct Scenario {
     pub diagnostics: Diagnostics,
     #[serde(default)]
     pub output: Output,
+    /// The sections of the extensions this binary carries, one per plugin, named after
+    /// it: `"plugins": {"charged_grains": {"q0": 1e-8}}` (src/plugins.rs). Left out of
+    /// the JSON when empty, so a scene without extensions reads and writes as before.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub plugins: BTreeMap<String, serde_json::Value>,
 }
 
 impl Scenario {
@@ -122,6 +127,7 @@ impl Scenario {
             .map_err(|e| malformed(format!("{what} has more after the scenario's object: {e}")))?;
         let mut scenario = scenario;
         scenario.load_cloud_file()?;
+        crate::plugins::canonical_sections(&mut scenario);
         scenario.validate()?;
         Ok(scenario)
     }
@@ -134,6 +140,7 @@ impl Scenario {
                 message: e.inner().to_string(),
             })?;
         scenario.load_cloud_file()?;
+        crate::plugins::canonical_sections(&mut scenario);
         scenario.validate()?;
         Ok(scenario)
     }
@@ -180,8 +187,23 @@ impl Scenario {
     }
 
     /// The JSON Schema of the scenario format.
+    /// The `plugins` property lists the sections of the extensions this binary carries.
     pub fn json_schema() -> serde_json::Value {
-        serde_json::to_value(schemars::schema_for!(Scenario)).expect("schema serialises") // ok: plain data
+        let mut schema =
+            serde_json::to_value(schemars::schema_for!(Scenario)).expect("schema serialises"); // ok: plain data
+        let mut defs = serde_json::Map::new();
+        let plugins = crate::plugins::sections_schema(&mut defs);
+        if let Some(root) = schema.as_object_mut() {
+            if let Some(serde_json::Value::Object(properties)) = root.get_mut("properties") {
+                properties.insert("plugins".into(), plugins);
+            }
+            if let Some(serde_json::Value::Object(own)) = root.get_mut("$defs") {
+                for (name, def) in defs {
+                    own.entry(name).or_insert(def);
+                }
+            }
+        }
+        schema
     }
 
     /// Primary radius b0 [m], from `radius` or `size_ratio`.
@@ -199,7 +221,7 @@ impl Scenario {
     /// one-body copy of the scene gets the same systems at no cost for any N.
     pub fn pipeline(&self) -> Result<Pipeline, SimError> {
         self.validate()?;
-        let sim = <Simulation as DefaultPlugins>::new(&self.one_body_copy())?;
+        let sim = crate::plugins::simulation(&self.one_body_copy())?;
         Ok(sim.pipeline().clone())
     }
 
@@ -519,6 +541,7 @@ impl Scenario {
             }
         }
 
+        v.issues.extend(crate::plugins::check_sections(self));
         if v.issues.is_empty() {
             Ok(())
         } else {
@@ -880,6 +903,7 @@ impl Scene for Scenario {
             // of this scenario takes them, whatever writes them out.
             world.insert_resource(agglo_engine::restart::Checkpoints::every(restart.every));
         }
+        crate::plugins::insert_sections(self, world);
         world.insert_resource(self.clone());
     }
 }

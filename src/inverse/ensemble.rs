@@ -21,9 +21,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::observables::Growth;
-use crate::prelude::DefaultPlugins;
 use crate::scenario::Scenario;
-use crate::schedule::Simulation;
 
 use super::problem::{
     CostSpec, EnsembleRule, EnsembleSpec, FailurePolicy, Moment, SampleFailure, Tracked,
@@ -311,7 +309,7 @@ pub fn run_sample(
     let sim = scenario
         .map_err(crate::error::SimError::from)
         .and_then(|s| {
-            let mut sim = Simulation::new(&s)?;
+            let mut sim = crate::plugins::simulation(&s)?;
             sim.run()?;
             Ok(sim)
         })

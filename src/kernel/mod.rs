@@ -56,9 +56,7 @@ pub fn seeds(scenario: &Scenario, count: u32) -> Vec<u64> {
 /// The scenario's simulation with the built-in physics, collecting what an
 /// [`Accumulator`] reads.
 pub fn simulation(scenario: &Scenario) -> Result<Simulation, crate::error::SimError> {
-    use agglo_systems::AddDefaultPlugins;
-    let mut builder = Simulation::builder(scenario)?;
-    builder.add_default_plugins();
+    let mut builder = crate::plugins::builder(scenario)?;
     subscribe(&mut builder);
     builder.build()
 }

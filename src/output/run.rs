@@ -55,9 +55,7 @@ impl TablePaths {
         &self,
         scenario: &Scenario,
     ) -> Result<crate::schedule::SimBuilder, crate::error::SimError> {
-        use agglo_systems::AddDefaultPlugins;
-        let mut builder = Simulation::builder(scenario)?;
-        builder.add_default_plugins();
+        let mut builder = crate::plugins::builder(scenario)?;
         if self.collisions.is_some() {
             collisions::subscribe(&mut builder);
         }

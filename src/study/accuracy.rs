@@ -412,7 +412,7 @@ pub fn measure(scenario: &Scenario, repeats: usize) -> anyhow::Result<Measuremen
     let mut walls = Vec::new();
     let mut first: Option<Measurement> = None;
     for _ in 0..repeats.max(1) {
-        let mut sim = Simulation::new(scenario)?;
+        let mut sim = crate::plugins::simulation(scenario)?;
         let outcome = sim.run();
         walls.push(sim.wall_seconds());
         if first.is_none() {

@@ -432,7 +432,7 @@ pub fn kinematic_misses(
     for k in 0..seeds.max(1) {
         let mut s = scenario.clone();
         s.seed = scenario.seed.wrapping_add(k as u64);
-        let sim = Simulation::new(&s)?;
+        let sim = crate::plugins::simulation(&s)?;
         let bodies = sim.bodies();
         for (t_in, t_closest) in contact_windows(&bodies, s.domain.half_width) {
             for m in out.iter_mut() {
@@ -538,7 +538,7 @@ pub fn run_misses(
         s
     };
     let impacts = |s: &Scenario| -> anyhow::Result<u64> {
-        let mut sim = Simulation::new(s)?;
+        let mut sim = crate::plugins::simulation(s)?;
         // A failed run still reports the impacts it resolved.
         let _ = sim.run();
         Ok(sim.counters().impacts)

@@ -343,3 +343,49 @@ fn the_minimal_scenario_runs_and_needs_each_of_its_sections() {
         "docs/scenarios.md shows minimal.json as it is"
     );
 }
+
+/// docs/extending.md opens with the first force as examples/first_force.rs has it (the
+/// program tests/suite/extension_binary.rs runs), and no page or crate marks a code
+/// example `ignore`: each one compiles, runs, or is plain text.
+#[test]
+fn the_first_force_on_the_page_is_the_example_that_runs() {
+    let page = std::fs::read_to_string(root().join("docs/extending.md")).unwrap();
+    let (_, blocks) = split(&page);
+    let (info, lines) = &blocks[0];
+    assert_eq!(info, "rust", "the page opens with the first force's code");
+    let code = std::fs::read_to_string(root().join("examples/first_force.rs")).unwrap();
+    let shown = lines.join("\n");
+    assert!(
+        shown.contains("add_force_systems") && code.contains(&shown),
+        "docs/extending.md's first code block is not a part of examples/first_force.rs:\n{shown}"
+    );
+    let mut marked = Vec::new();
+    for dir in ["docs", "src", "engine", "systems", "examples", "python/src"] {
+        for path in files_under(&root().join(dir)) {
+            let Ok(text) = std::fs::read_to_string(&path) else {
+                continue;
+            };
+            if text.contains(&format!("{}ignore", "```")) {
+                marked.push(path.display().to_string());
+            }
+        }
+    }
+    assert!(marked.is_empty(), "`ignore`d code examples in {marked:?}");
+}
+
+/// Every file under `dir`, recursively (.rs and .md).
+fn files_under(dir: &Path) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return files;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            files.extend(files_under(&path));
+        } else if path.extension().is_some_and(|e| e == "rs" || e == "md") {
+            files.push(path);
+        }
+    }
+    files
+}

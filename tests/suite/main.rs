@@ -17,6 +17,7 @@ mod docs;
 mod energy_ledgers;
 mod events;
 mod extension;
+mod extension_binary;
 mod fields;
 mod first_day;
 mod fuzz;

@@ -242,7 +242,7 @@ pub fn scenario_capped(
 /// Run one scenario and measure it.
 pub fn measure(scenario: &Scenario) -> Result<RunStats, String> {
     let start = std::time::Instant::now();
-    let mut sim = Simulation::new(scenario).map_err(|e| e.to_string())?;
+    let mut sim = crate::plugins::simulation(scenario).map_err(|e| e.to_string())?;
     sim.run().map_err(|e| e.to_string())?;
     let s = sim.summary();
     // A run that broke an invariant (e.g. explicit cooling driving θ to −∞, docs/model.md
