@@ -17,6 +17,7 @@
 use bevy_ecs::prelude::*;
 use bevy_ecs::query::QueryData;
 
+use agglo_engine::core_only::SimBuilderCore;
 use agglo_engine::scene::{Core, Physics, TimeControl, event_core_needs};
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
@@ -392,9 +393,9 @@ impl SimPlugin for ContactPlugin {
                 let core = crate::events::build_core(world, brute_force);
                 world.insert_resource(core);
             })
-            .add_systems(StepSystems::Contact, crate::events::pop_due_contacts)
-            .add_systems(StepSystems::TimeStep, crate::events::schedule_next_step)
-            .add_systems(StepSystems::Boundary, crate::events::report_overlaps)
+            .add_core_systems(StepSystems::Contact, crate::events::pop_due_contacts)
+            .add_core_systems(StepSystems::TimeStep, crate::events::schedule_next_step)
+            .add_core_systems(StepSystems::Boundary, crate::events::report_overlaps)
             .report_core_stats(|world| world.resource::<crate::events::core::EventCore>().stats)
             .add_restart_part(crate::events::resync::restart_part());
             return;
@@ -402,8 +403,8 @@ impl SimPlugin for ContactPlugin {
         sim.init_resource::<NeighbourTable>()
             .init_resource::<ContactScratch>()
             .add_restart_part(ContactScratch::restart_part())
-            .add_systems(StepSystems::Contact, detect_contacts)
-            .add_systems(StepSystems::TimeStep, crate::time_step::choose_time_step);
+            .add_core_systems(StepSystems::Contact, detect_contacts)
+            .add_core_systems(StepSystems::TimeStep, crate::time_step::choose_time_step);
     }
 }
 

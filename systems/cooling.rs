@@ -14,6 +14,7 @@
 
 use bevy_ecs::prelude::*;
 
+use agglo_engine::core_only::SimBuilderCore;
 use agglo_engine::scene::CoolingMethod;
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
@@ -59,7 +60,7 @@ impl SimPlugin for CoolingPlugin {
     fn build(&self, sim: &mut SimBuilder) {
         match no_cooling_system(sim) {
             Some(why) => sim.leave_out(why),
-            None => sim.add_systems(StepSystems::Cooling, cool_bodies),
+            None => sim.add_core_systems(StepSystems::Cooling, cool_bodies),
         };
     }
 }

@@ -15,6 +15,7 @@
 use bevy_ecs::prelude::*;
 use bevy_ecs::query::QueryData;
 
+use agglo_engine::core_only::SimBuilderCore;
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 use agglo_engine::params::SceneConstants;
@@ -487,14 +488,14 @@ impl SimPlugin for DiagnosticsPlugin {
             let start = initial_totals(sim.world_mut());
             let full_every = d.every.max(sim.info().initial_bodies as u64);
             sim.insert_resource(RunningTotals::new(&start, full_every))
-                .add_systems(StepSystems::Diagnostics, check_step_totals)
+                .add_core_systems(StepSystems::Diagnostics, check_step_totals)
                 .add_restart_part(agglo_engine::restart::RestartPart {
                     name: "running_totals",
                     save: |_| Vec::new(),
                     load: |world, _| RunningTotals::recompute(world),
                 });
         } else if d.invariants {
-            sim.add_systems(StepSystems::Diagnostics, check_invariants);
+            sim.add_core_systems(StepSystems::Diagnostics, check_invariants);
         } else {
             sim.leave_out("diagnostics off: diagnostics.invariants = false");
         }

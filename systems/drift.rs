@@ -8,6 +8,7 @@
 
 use bevy_ecs::prelude::*;
 
+use agglo_engine::core_only::SimBuilderCore;
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 use glam::DVec3;
 
@@ -64,7 +65,7 @@ impl SimPlugin for MotionPlugin {
             );
             return;
         }
-        sim.add_systems(StepSystems::Drift, drift)
-            .add_systems(StepSystems::Boundary, crate::boundary::wrap_positions);
+        sim.add_core_systems(StepSystems::Drift, drift)
+            .add_core_systems(StepSystems::Boundary, crate::boundary::wrap_positions);
     }
 }

@@ -21,6 +21,7 @@ use std::collections::HashMap;
 use bevy_ecs::prelude::*;
 use bevy_ecs::query::QueryData;
 
+use agglo_engine::core_only::SimBuilderCore;
 use agglo_engine::scene::{Material, Physics};
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
@@ -258,7 +259,7 @@ impl SimPlugin for FragmentPlugin {
     fn build(&self, sim: &mut SimBuilder) {
         match fragmentation_off(sim.resource::<Material>(), sim.resource::<Physics>()) {
             Some(why) => sim.leave_out(format!("fragmentation off: {why}")),
-            None => sim.add_systems(StepSystems::Fragment, fragment_bodies),
+            None => sim.add_core_systems(StepSystems::Fragment, fragment_bodies),
         };
     }
 }

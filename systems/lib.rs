@@ -9,8 +9,10 @@
 //! `off`, no fragmentation when γ is ∞, no diagnostics when switched off. The plugin
 //! that leaves a system out says why ([`SimBuilder::leave_out`]), so `agglo validate`,
 //! the summary and the recording can show it. The stage order lives in the engine
-//! ([`StepSystems`]); [`default_plugins`] lists the built-ins and [`DefaultPlugins`]
-//! adds them to a simulation.
+//! ([`StepSystems`](agglo_engine::schedule::StepSystems)); [`default_plugins`] lists the
+//! built-ins and [`DefaultPlugins`] adds them to a simulation. Each plugin sits in the
+//! file of the systems it schedules; they call the core-only builder calls
+//! ([`agglo_engine::core_only::SimBuilderCore`]) besides the ones every plugin has.
 
 pub mod boundary;
 pub mod contact;

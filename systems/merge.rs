@@ -24,6 +24,7 @@ use std::collections::HashMap;
 use bevy_ecs::prelude::*;
 use bevy_ecs::query::QueryData;
 
+use agglo_engine::core_only::SimBuilderCore;
 use agglo_engine::scene::Physics;
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
@@ -177,7 +178,7 @@ impl SimPlugin for MergePlugin {
     }
     fn build(&self, sim: &mut SimBuilder) {
         if sim.resource::<Physics>().merging {
-            sim.add_systems(StepSystems::Merge, merge_bonded);
+            sim.add_core_systems(StepSystems::Merge, merge_bonded);
         } else {
             sim.leave_out("merging off: physics.merging = false");
         }

@@ -30,6 +30,7 @@ use std::collections::HashMap;
 use bevy_ecs::prelude::*;
 use bevy_ecs::query::QueryData;
 
+use agglo_engine::core_only::SimBuilderCore;
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 use agglo_engine::params::{RunBooks, SceneConstants};
@@ -536,7 +537,7 @@ pub fn apply_impact_outcomes(
 }
 
 /// Adds [`apply_impact_outcomes`] where it runs (for
-/// [`agglo_engine::schedule::SimBuilder::set_impact_outcome_applier`]).
+/// [`agglo_engine::core_only::SimBuilderCore::set_impact_outcome_applier`]).
 pub fn add_outcome_applier(schedule: &mut Schedule) {
     schedule.add_systems(apply_impact_outcomes.in_set(ImpactOutcomeSystems::Apply));
 }
@@ -551,7 +552,7 @@ impl SimPlugin for ImpactPlugin {
         // The scene's `impact` section, or the defaults when it gives none.
         sim.init_resource::<ImpactModel>()
             .init_resource::<SolvedImpacts>()
-            .add_systems(StepSystems::Impact, resolve_impacts)
+            .add_core_systems(StepSystems::Impact, resolve_impacts)
             .set_impact_outcome_applier(add_outcome_applier);
         let settings = *sim.resource::<ImpactModel>();
         if settings.restitution.is_some() {
