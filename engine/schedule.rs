@@ -354,9 +354,7 @@ impl SimBuilder {
             .query_filtered::<(Entity, StoredBody), With<Particle>>();
         let bodies: Vec<(Entity, BodyState)> = query
             .iter(&self.world)
-            .map(|(e, (id, p, v, m, b, t, h, n, _))| {
-                (e, BodyState::from((id, p, v, m, b, t, h, n)))
-            })
+            .map(|(e, body)| (e, body.state()))
             .collect();
         let mut by_id: Vec<usize> = (0..bodies.len()).collect();
         by_id.sort_unstable_by_key(|&k| bodies[k].1.id);
@@ -1159,10 +1157,10 @@ impl Simulation {
         let now = self.clock().time;
         let clockwork = self.clockwork();
         let mut c = BodyColumns::with_capacity(self.body_count());
-        for (id, p, v, m, b, t, h, n, lt) in query.iter(&self.world) {
-            let state = BodyState::from((id, p, v, m, b, t, h, n));
+        for body in query.iter(&self.world) {
+            let state = body.state();
             c.push(&if lazy {
-                state_at(&state, lt.0, now, &clockwork)
+                state_at(&state, body.local_time.0, now, &clockwork)
             } else {
                 state
             });
@@ -1186,10 +1184,10 @@ impl Simulation {
         let clockwork = self.clockwork();
         let mut bodies: Vec<BodyState> = query
             .iter(&self.world)
-            .map(|(id, p, v, m, b, t, h, n, lt)| {
-                let state = BodyState::from((id, p, v, m, b, t, h, n));
+            .map(|body| {
+                let state = body.state();
                 if lazy {
-                    state_at(&state, lt.0, now, &clockwork)
+                    state_at(&state, body.local_time.0, now, &clockwork)
                 } else {
                     state
                 }
