@@ -17,6 +17,7 @@
 //! makes as force work, the thermal energy as external heat.
 
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::QueryData;
 use bevy_ecs::system::SystemParam;
 use glam::DVec3;
 
@@ -210,18 +211,22 @@ pub fn state_at(body: &BodyState, t_ref: f64, now: f64, clockwork: &Clockwork) -
     b
 }
 
-type BodyData = (
-    Entity,
-    &'static ParticleId,
-    &'static mut Position,
-    &'static mut Velocity,
-    &'static Mass,
-    &'static Radius,
-    &'static mut Temperature,
-    &'static mut Hardness,
-    &'static Primaries,
-    &'static mut LocalTime,
-);
+/// What `Bodies` reads of a body, and writes: the state that changes in flight and
+/// by forces (mass, radius and primaries change only by merging and fragmentation).
+#[derive(QueryData)]
+#[query_data(mutable)]
+struct BodyData {
+    entity: Entity,
+    id: &'static ParticleId,
+    position: &'static mut Position,
+    velocity: &'static mut Velocity,
+    mass: &'static Mass,
+    radius: &'static Radius,
+    temperature: &'static mut Temperature,
+    hardness: &'static mut Hardness,
+    primaries: &'static Primaries,
+    local_time: &'static mut LocalTime,
+}
 
 /// Bodies at the current time, for systems that add physics (forces, heating, …).
 ///
@@ -288,13 +293,27 @@ impl Bodies<'_, '_> {
 
     /// A body's state at the current time (read only: nothing is written).
     pub fn get(&self, entity: Entity) -> Option<BodyState> {
-        let (_, id, p, v, m, b, t, h, n, lt) = self.query.get(entity).ok()?;
-        let state = BodyState::from((id, p, v, m, b, t, h, n));
+        let body = self.query.get(entity).ok()?;
+        let state = BodyState::from((
+            body.id,
+            body.position,
+            body.velocity,
+            body.mass,
+            body.radius,
+            body.temperature,
+            body.hardness,
+            body.primaries,
+        ));
         if !self.lazy.0 {
             return Some(state);
         }
         let clockwork = self.scene.clockwork();
-        Some(state_at(&state, lt.0, self.clock.time, &clockwork))
+        Some(state_at(
+            &state,
+            body.local_time.0,
+            self.clock.time,
+            &clockwork,
+        ))
     }
 
     /// Change one body: it is brought to the current time, `change` edits it, and the
@@ -372,14 +391,25 @@ impl Tally {
 /// Bring a body to `now` (lazy core), record its state before the change, apply it;
 /// returns what it moved in the energy ledger.
 fn apply(
-    row: <BodyData as bevy_ecs::query::QueryData>::Item<'_, '_>,
+    row: BodyDataItem<'_, '_>,
     now: f64,
     lazy: bool,
     clockwork: &Clockwork,
     events: &mut StepEvents,
     change: impl FnOnce(&mut BodyState),
 ) -> Tally {
-    let (entity, id, mut p, mut v, m, b, mut t, mut h, n, mut lt) = row;
+    let BodyDataItem {
+        entity,
+        id,
+        position: mut p,
+        velocity: mut v,
+        mass: m,
+        radius: b,
+        temperature: mut t,
+        hardness: mut h,
+        primaries: n,
+        local_time: mut lt,
+    } = row;
     // The contribution before the body is brought forward: the heat it loses on the
     // way is tallied in the ledger and shows in its state after.
     let c = clockwork.material.C;

@@ -8,6 +8,7 @@
 //! [`crate::scene::Material::hardness`]).
 
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::QueryData;
 use glam::DVec3;
 
 /// Marker for particle entities (resources are entities too in bevy_ecs 0.20,
@@ -73,17 +74,35 @@ pub struct ParticleBundle {
 
 /// Every stored component of a body, read-only, with its reference time: what a copy of
 /// the bodies reads (`Simulation::bodies`, restart snapshots).
-pub type StoredBody = (
-    &'static ParticleId,
-    &'static Position,
-    &'static Velocity,
-    &'static Mass,
-    &'static Radius,
-    &'static Temperature,
-    &'static Hardness,
-    &'static Primaries,
-    &'static LocalTime,
-);
+#[derive(QueryData)]
+pub struct StoredBody {
+    pub id: &'static ParticleId,
+    pub position: &'static Position,
+    pub velocity: &'static Velocity,
+    pub mass: &'static Mass,
+    pub radius: &'static Radius,
+    pub temperature: &'static Temperature,
+    pub hardness: &'static Hardness,
+    pub primaries: &'static Primaries,
+    /// The time the state holds at [s] (the current time on the stepped core).
+    pub local_time: &'static LocalTime,
+}
+
+impl StoredBodyItem<'_, '_> {
+    /// The body's state as stored, at its reference time `local_time`.
+    pub fn state(&self) -> BodyState {
+        BodyState::from((
+            self.id,
+            self.position,
+            self.velocity,
+            self.mass,
+            self.radius,
+            self.temperature,
+            self.hardness,
+            self.primaries,
+        ))
+    }
+}
 
 /// A plain-data copy of one body's state, used for output and by pure functions.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -21,7 +21,9 @@
 //!   fragmentations by its rules;
 //! - [`hooks`]: typed messages at every impact, merge and fragmentation, for
 //!   extensions that subscribe;
-//! - [`params`]: system parameters grouping what a stage reads and writes together;
+//! - [`params`]: system parameters grouping what a stage reads and writes together
+//!   (read-only views for every plugin, the run's books for the core);
+//! - [`core_only`]: the builder calls only the core plugins make;
 //! - [`observables`], [`totals`]: what a run measures (docs/model.md §10, §11).
 //!
 //! Nothing here knows a built-in plugin: `agglo-systems` builds on this crate, and the
@@ -31,6 +33,7 @@ pub mod bodies;
 pub mod carried;
 pub mod cloud;
 pub mod components;
+pub mod core_only;
 pub mod error;
 pub mod field;
 pub mod hooks;
@@ -49,22 +52,26 @@ pub mod totals;
 pub use bevy_ecs;
 pub use glam;
 
-/// What a plugin author needs: the body components, the `Bodies` access, the clock and
-/// run-state resources, the stages and the plugin API.
+/// What an extension author needs, and no more (docs/extending.md, "The plugin API",
+/// says what each item is for): the plugin API, the stages, `Bodies` and the state it
+/// hands a closure, the components safe to query directly on either core (the
+/// time-dependent ones are read through `Bodies`), carried quantities, the fields, the
+/// hooks' messages and outcomes, read-only views of the scene and the run, and the
+/// errors. Plumbing (the stored-body tuples, reference times, the run's writable books,
+/// the core-only builder calls) stays under its module path.
 pub mod prelude {
     pub use crate::bodies::Bodies;
     pub use crate::carried::{Carried, Combine, Split};
-    pub use crate::components::*;
+    pub use crate::components::{BodyState, Mass, Particle, ParticleId, Primaries, Radius};
     pub use crate::error::{ScenarioError, SimError};
     pub use crate::field::{Drag, Field, Relaxation};
     pub use crate::hooks::{
-        FragmentMessage, ImpactMessage, ImpactOutcome, ImpactOutcomeSystems, MergeMessage,
-        MessageReader, MessageWriter, Messages, OutcomeChange, PendingImpact, PendingImpacts,
+        FragmentMessage, ImpactMessage, ImpactOutcome, MergeMessage, MessageReader, PendingImpact,
+        PendingImpacts,
     };
-    pub use crate::observables::{Growth, RadiusStats, Summary};
-    pub use crate::params::{RunBooks, SceneConstants};
+    pub use crate::observables::Summary;
+    pub use crate::params::{RunView, SceneConstants};
     pub use crate::resources::{Counters, EnergyLedger, SimClock};
     pub use crate::scene::Material;
     pub use crate::schedule::{SimBuilder, SimPlugin, Simulation, StepSystems};
-    pub use crate::setup::Scene;
 }

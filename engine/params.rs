@@ -1,6 +1,8 @@
 //! System parameters that group what a stage reads and writes together, so that a
-//! system names the scene and the run's books once instead of resource by resource.
-//! Built-in plugins and extensions use the same ones.
+//! system names the scene and the run's books once instead of resource by resource:
+//! [`SceneConstants`] and [`RunView`] for every plugin, [`RunBooks`] for the core
+//! plugins only (an extension's system that writes the books is refused at build;
+//! docs/extending.md, "What an extension may write").
 
 use bevy_ecs::prelude::*;
 use bevy_ecs::system::SystemParam;
@@ -23,7 +25,41 @@ pub struct SceneConstants<'w> {
     pub field: Option<Res<'w, Field>>,
 }
 
-/// The run's books that a stage changing bodies writes: the clock (and its flags),
+/// The run's clock and counters, read only: what an extension's system may know of the
+/// run (the time, the step length, the step number, the events so far). Usable beside
+/// [`crate::bodies::Bodies`]; the energy ledger is `Res<EnergyLedger>` in a system
+/// without `Bodies` (which writes it), or [`crate::schedule::Simulation::ledger`].
+#[derive(SystemParam)]
+pub struct RunView<'w> {
+    clock: Res<'w, SimClock>,
+    counters: Res<'w, Counters>,
+}
+
+impl RunView<'_> {
+    /// The clock: t [s], the step length Δt [s] and the step number L.
+    pub fn clock(&self) -> &SimClock {
+        &self.clock
+    }
+    /// The run's event counts so far (impacts, bonds, merges, fragmentations, …).
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+    /// The current time t [s].
+    pub fn now(&self) -> f64 {
+        self.clock.time
+    }
+    /// Length of the step being taken, Δt [s].
+    pub fn dt(&self) -> f64 {
+        self.clock.dt
+    }
+    /// The number of steps taken, L.
+    pub fn step(&self) -> u64 {
+        self.clock.step
+    }
+}
+
+/// For the core plugins (an extension's system that writes these is refused at build):
+/// the run's books that a stage changing bodies writes: the clock (and its flags),
 /// the event counters, the energy ledger, whether velocities or the body set changed,
 /// and what happened to which body this step (for the event core and the checks).
 #[derive(SystemParam)]

@@ -385,16 +385,16 @@ pub fn capture(world: &mut World) -> RestartSnapshot {
     let mut query = world.query_filtered::<StoredBody, With<Particle>>();
     let bodies = query
         .iter(world)
-        .map(|(id, p, v, m, b, t, h, n, lt)| BodyRow {
-            id: id.0,
-            position: p.0.to_array(),
-            velocity: v.0.to_array(),
-            mass: m.0,
-            radius: b.0,
-            temperature: t.0,
-            hardness: h.0,
-            primaries: n.0,
-            local_time: lt.0,
+        .map(|b| BodyRow {
+            id: b.id.0,
+            position: b.position.0.to_array(),
+            velocity: b.velocity.0.to_array(),
+            mass: b.mass.0,
+            radius: b.radius.0,
+            temperature: b.temperature.0,
+            hardness: b.hardness.0,
+            primaries: b.primaries.0,
+            local_time: b.local_time.0,
         })
         .collect();
     let parts = world

@@ -173,7 +173,10 @@ type Rotate = fn(&mut World);
 /// Work a plugin leaves for [`SimBuilder::build`].
 type Finisher = Box<dyn FnOnce(&mut World)>;
 
-/// A world and schedule under construction.
+/// A world and schedule under construction: the calls every plugin may make (its own
+/// resources, systems in any stage, forces, fields, hooks, carried quantities, restart
+/// parts). What only a core plugin needs is in [`crate::core_only::SimBuilderCore`];
+/// docs/extending.md, "The plugin API", lists both.
 pub struct SimBuilder {
     world: World,
     schedule: Schedule,
@@ -192,6 +195,8 @@ pub struct SimBuilder {
     outcome_hooks: bool,
     /// Adds the system that applies pending impact outcomes (the impact plugin's).
     outcome_applier: Option<fn(&mut Schedule)>,
+    /// Why [`SimBuilder::build`] must fail: a plugin replaced the run's books.
+    refused: Vec<String>,
 }
 
 impl SimBuilder {
@@ -290,6 +295,7 @@ impl SimBuilder {
             subscriptions: Vec::new(),
             outcome_hooks: false,
             outcome_applier: None,
+            refused: Vec::new(),
         })
     }
 
@@ -300,13 +306,6 @@ impl SimBuilder {
     /// every body every step. May be called before or after the built-in plugins.
     pub fn set_field(&mut self, field: crate::field::Field) -> &mut Self {
         self.world.insert_resource(field);
-        self
-    }
-
-    /// Run `finish` on the world when [`Self::build`] is called, after every plugin has
-    /// been built (e.g. a core that must see every setting, the field among them).
-    pub fn when_built(&mut self, finish: impl FnOnce(&mut World) + 'static) -> &mut Self {
-        self.finishers.push(Box::new(finish));
         self
     }
 
@@ -327,18 +326,50 @@ impl SimBuilder {
         self.world.resource::<LazyState>().0
     }
 
-    /// The world (for resources an extension needs to insert or read).
-    pub fn world_mut(&mut self) -> &mut World {
-        &mut self.world
-    }
-
     /// Add systems to one stage. Systems within a stage run in the order they are chained.
+    /// At build they are checked: on the event core a system that queries a body's
+    /// time-dependent state without [`crate::bodies::Bodies`] is refused (it would read
+    /// stale state), and on either core one that writes the run's books (clock,
+    /// counters, ledgers, the step's records) is refused — read them with
+    /// [`crate::params::RunView`]; docs/extending.md, "What an extension may write".
     pub fn add_systems<M>(
         &mut self,
         stage: StepSystems,
         systems: impl IntoScheduleConfigs<ScheduleSystem, M>,
     ) -> &mut Self {
-        self.schedule.add_systems(systems.in_set(stage));
+        self.schedule
+            .add_systems(systems.in_set(stage).in_set(ExtensionSystems));
+        self
+    }
+
+    /// Give every body components of the plugin's own at t = 0 (e.g. the initial value
+    /// of a quantity it carries, [`Self::carry`]; a tuple for several), made from the
+    /// body's initial state; `make` is called in id order, so it may count the bodies.
+    pub fn init_each_body<B: Bundle>(
+        &mut self,
+        mut make: impl FnMut(&BodyState) -> B,
+    ) -> &mut Self {
+        let mut query = self
+            .world
+            .query_filtered::<(Entity, StoredBody), With<Particle>>();
+        let bodies: Vec<(Entity, BodyState)> = query
+            .iter(&self.world)
+            .map(|(e, body)| (e, body.state()))
+            .collect();
+        let mut by_id: Vec<usize> = (0..bodies.len()).collect();
+        by_id.sort_unstable_by_key(|&k| bodies[k].1.id);
+        let mut made: Vec<Option<B>> = bodies.iter().map(|_| None).collect();
+        for k in by_id {
+            made[k] = Some(make(&bodies[k].1));
+        }
+        // Inserted in the world's order, as a plugin iterating a query does: the bodies
+        // keep their order in their new table, so sums taken in query order afterwards
+        // (the event core's mean velocity) come out as they did before this call.
+        for ((entity, _), bundle) in bodies.iter().zip(made) {
+            if let Some(bundle) = bundle {
+                self.world.entity_mut(*entity).insert(bundle);
+            }
+        }
         self
     }
 
@@ -386,14 +417,49 @@ impl SimBuilder {
         Ok(self)
     }
 
+    /// Insert (or replace) a resource of the plugin's own: its settings, its state. The
+    /// engine's run state (clock, counters, ledgers, the records the stages hand on) is
+    /// not a plugin's to replace: [`Self::build`] then fails, naming the type.
     pub fn insert_resource<R: Resource>(&mut self, value: R) -> &mut Self {
+        self.refuse_run_state::<R>("insert_resource");
         self.world.insert_resource(value);
         self
     }
 
+    /// Insert a resource of the plugin's own from its `Default` (or `FromWorld`), unless
+    /// it is there already. Refused for the engine's run state, as [`Self::insert_resource`].
     pub fn init_resource<R: Resource + FromWorld>(&mut self) -> &mut Self {
+        self.refuse_run_state::<R>("init_resource");
         self.world.init_resource::<R>();
         self
+    }
+
+    /// Note a plugin's attempt to replace one of the engine's run-state resources.
+    fn refuse_run_state<R: Resource>(&mut self, call: &str) {
+        use std::any::TypeId;
+        let engine_owned = [
+            TypeId::of::<SimClock>(),
+            TypeId::of::<Counters>(),
+            TypeId::of::<EnergyLedger>(),
+            TypeId::of::<InvariantReport>(),
+            TypeId::of::<crate::resources::NonFiniteState>(),
+            TypeId::of::<StepEvents>(),
+            TypeId::of::<StateChanged>(),
+            TypeId::of::<ContactList>(),
+            TypeId::of::<ImpactRecords>(),
+            TypeId::of::<IdAllocator>(),
+            TypeId::of::<ForceKicks>(),
+            TypeId::of::<LazyState>(),
+            TypeId::of::<BodiesGate>(),
+        ];
+        if engine_owned.contains(&TypeId::of::<R>()) {
+            self.refused.push(format!(
+                "{call}::<{}>: the engine's run state is not a plugin's to replace (an \
+                 extension reads the clock and counters through agglo::params::RunView; \
+                 docs/extending.md, \"What an extension may write\")",
+                std::any::type_name::<R>()
+            ));
+        }
     }
 
     /// Say why a system this scene could run is left out, e.g. `cooling off: ε = hc = 0
@@ -401,12 +467,6 @@ impl SimBuilder {
     /// (listed by [`Simulation::pipeline`]).
     pub fn leave_out(&mut self, what_and_why: impl Into<String>) -> &mut Self {
         self.left_out.push(what_and_why.into());
-        self
-    }
-
-    /// Say why the scene runs on its core (the plugin that builds the core says it).
-    pub fn explain_core(&mut self, why: impl Into<String>) -> &mut Self {
-        self.core_reason = why.into();
         self
     }
 
@@ -444,16 +504,11 @@ impl SimBuilder {
             );
             self.outcome_hooks = true;
         }
-        self.schedule
-            .add_systems(systems.in_set(ImpactOutcomeSystems::Decide));
-        self
-    }
-
-    /// For the plugin that resolves impacts: how to add its system applying pending
-    /// outcomes (in [`crate::hooks::ImpactOutcomeSystems::Apply`]), used at
-    /// [`SimBuilder::build`] only if an extension added outcome systems.
-    pub fn set_impact_outcome_applier(&mut self, add: fn(&mut Schedule)) -> &mut Self {
-        self.outcome_applier = Some(add);
+        self.schedule.add_systems(
+            systems
+                .in_set(ImpactOutcomeSystems::Decide)
+                .in_set(ExtensionSystems),
+        );
         self
     }
 
@@ -511,16 +566,12 @@ impl SimBuilder {
         self
     }
 
-    /// Have the summary carry a core's own counts: `read` takes them from the world
-    /// when a summary is made (the event core reports its [`EventStats`] this way).
-    pub fn report_core_stats(&mut self, read: fn(&World) -> EventStats) -> &mut Self {
-        self.core_stats = Some(read);
-        self
-    }
-
     /// Finish: the runnable simulation. Fails if the pipeline is ill-formed (e.g. two
     /// systems in one stage touching the same data without an order between them).
     pub fn build(mut self) -> Result<Simulation, SimError> {
+        if let Some(why) = self.refused.first() {
+            return Err(SimError::Schedule(why.clone()));
+        }
         for finish in std::mem::take(&mut self.finishers) {
             finish(&mut self.world);
         }
@@ -547,10 +598,9 @@ impl SimBuilder {
             let message = e.to_string(self.schedule.graph(), &self.world);
             return Err(SimError::Schedule(message));
         }
-        if self.uses_event_core() {
-            let extension_slots = [StepSystems::First, StepSystems::Last];
-            refuse_stale_reads(&self.schedule, &extension_slots, &self.world)?;
-        }
+        let lazy = self.uses_event_core();
+        let extensions = Some(ExtensionSystems.intern());
+        refuse_unsafe_access(&self.schedule, extensions, &self.world, lazy)?;
         let mut systems: Vec<String> = self
             .schedule
             .systems()
@@ -563,9 +613,7 @@ impl SimBuilder {
                 let message = e.to_string(forces.graph(), &self.world);
                 return Err(SimError::Schedule(message));
             }
-            if self.uses_event_core() {
-                refuse_stale_reads(&forces, &[], &self.world)?;
-            }
+            refuse_unsafe_access(&forces, None, &self.world, lazy)?;
             // List the force systems where they run: in place of their runner.
             let names: Vec<String> = forces
                 .systems()
@@ -610,55 +658,123 @@ impl SimBuilder {
     }
 }
 
-/// On the event core, refuse a system that queries a body's time-dependent state without
-/// [`crate::bodies::Bodies`] (docs/model.md §4: it would read each body at its own
-/// reference time, not now, silently). Checked for the systems of `slots` — the stages
-/// open to extensions — or, with no slots, every system of `schedule` (the forces).
+impl crate::core_only::SimBuilderCore for SimBuilder {
+    fn add_core_systems<M>(
+        &mut self,
+        stage: StepSystems,
+        systems: impl IntoScheduleConfigs<ScheduleSystem, M>,
+    ) -> &mut Self {
+        self.schedule.add_systems(systems.in_set(stage));
+        self
+    }
+
+    fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+
+    fn when_built(&mut self, finish: impl FnOnce(&mut World) + 'static) -> &mut Self {
+        self.finishers.push(Box::new(finish));
+        self
+    }
+
+    fn explain_core(&mut self, why: impl Into<String>) -> &mut Self {
+        self.core_reason = why.into();
+        self
+    }
+
+    fn report_core_stats(&mut self, read: fn(&World) -> EventStats) -> &mut Self {
+        self.core_stats = Some(read);
+        self
+    }
+
+    fn set_impact_outcome_applier(&mut self, add: fn(&mut Schedule)) -> &mut Self {
+        self.outcome_applier = Some(add);
+        self
+    }
+}
+
+/// The systems added through the API open to every plugin ([`SimBuilder::add_systems`],
+/// [`SimBuilder::add_impact_outcome_systems`]): the ones [`SimBuilder::build`] checks.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+struct ExtensionSystems;
+
+/// Refuse an extension's system that would read stale state or write the run's books.
+/// Checked for the systems in `only` (those added through the API open to every plugin,
+/// whatever the stage) or, with `None`, every system of `schedule` (the forces):
+/// - on the event core (`lazy`), one that queries a body's time-dependent state without
+///   [`crate::bodies::Bodies`] (docs/model.md §4: it would read each body at its own
+///   reference time, not now, silently);
+/// - on either core, one that writes the clock, the counters, the invariant report or the
+///   records the stages hand on (they are the core's; an extension reads them through
+///   [`crate::params::RunView`]), or the energy ledger or the step's events other than
+///   through `Bodies` (which books what it changes).
+///
 /// Exclusive systems (`&mut World`) cannot be inspected and are let through.
-fn refuse_stale_reads(
+fn refuse_unsafe_access(
     schedule: &Schedule,
-    slots: &[StepSystems],
+    only: Option<bevy_ecs::schedule::InternedSystemSet>,
     world: &World,
+    lazy: bool,
 ) -> Result<(), SimError> {
-    let Some(gate) = world.component_id::<BodiesGate>() else {
-        return Ok(());
+    let ids = |list: &[(Option<ComponentId>, &'static str)]| -> Vec<(ComponentId, &'static str)> {
+        list.iter()
+            .filter_map(|&(id, name)| Some((id?, name)))
+            .collect()
     };
-    let lazy: Vec<(ComponentId, &str)> = [
+    let gate = world.component_id::<BodiesGate>();
+    let lazy_state = ids(&[
         (world.component_id::<Position>(), "Position"),
         (world.component_id::<Velocity>(), "Velocity"),
         (world.component_id::<Temperature>(), "Temperature"),
         (world.component_id::<Hardness>(), "Hardness"),
         (world.component_id::<LocalTime>(), "LocalTime"),
-    ]
-    .into_iter()
-    .filter_map(|(id, name)| Some((id?, name)))
-    .collect();
-    let mut in_slots = std::collections::HashSet::new();
-    for slot in slots {
-        if let Ok(keys) = schedule.graph().systems_in_set(slot.intern()) {
-            in_slots.extend(keys.iter().copied());
-        }
-    }
+    ]);
+    // Resources are components of their own entity in bevy_ecs 0.20.
+    let books = ids(&[
+        (world.component_id::<SimClock>(), "SimClock"),
+        (world.component_id::<Counters>(), "Counters"),
+        (world.component_id::<InvariantReport>(), "InvariantReport"),
+        (
+            world.component_id::<crate::resources::NonFiniteState>(),
+            "NonFiniteState",
+        ),
+        (world.component_id::<StateChanged>(), "StateChanged"),
+        (world.component_id::<ContactList>(), "ContactList"),
+        (world.component_id::<ImpactRecords>(), "ImpactRecords"),
+        (world.component_id::<IdAllocator>(), "IdAllocator"),
+        (world.component_id::<ForceKicks>(), "ForceKicks"),
+    ]);
+    let booked_by_bodies = ids(&[
+        (world.component_id::<EnergyLedger>(), "EnergyLedger"),
+        (world.component_id::<StepEvents>(), "StepEvents"),
+    ]);
+    // A set no system was put in is unknown to the schedule: nothing to check.
+    let checked: Option<std::collections::HashSet<_>> = only.map(|set| {
+        schedule
+            .graph()
+            .systems_in_set(set)
+            .map(|keys| keys.iter().copied().collect())
+            .unwrap_or_default()
+    });
     let systems = schedule
         .systems_with_access()
         .map_err(|e| SimError::Schedule(format!("{e:?}")))?;
     for (key, system) in systems {
-        if !slots.is_empty() && !in_slots.contains(&key) {
+        if checked.as_ref().is_some_and(|keys| !keys.contains(&key)) {
             continue;
         }
         let bevy_ecs::system::SystemAccess::Shared(access) = system.access() else {
             continue;
         };
         let access = access.combined_access();
-        if access.has_read(gate) {
-            continue; // reads bodies through `Bodies`
-        }
-        let stale: Vec<&str> = lazy
+        let through_bodies = gate.is_some_and(|g| access.has_read(g));
+        let name = || short_name(&system.name().to_string());
+        let stale: Vec<&str> = lazy_state
             .iter()
             .filter(|(id, _)| access.has_read(*id) || access.has_write(*id))
             .map(|(_, name)| *name)
             .collect();
-        if !stale.is_empty() {
+        if lazy && !through_bodies && !stale.is_empty() {
             return Err(SimError::Schedule(format!(
                 "system `{}` queries {} directly, but this scene runs on the event core, where \
                  each body holds its state at its own reference time (docs/model.md §4): the \
@@ -666,8 +782,24 @@ fn refuse_stale_reads(
                  system parameter (agglo::bodies::Bodies), which brings each body to the \
                  current time and has the event core re-predict what changes; or run the scene \
                  on the stepped core (time.core = \"stepped\")",
-                short_name(&system.name().to_string()),
+                name(),
                 stale.join(", ")
+            )));
+        }
+        let written: Vec<&str> = books
+            .iter()
+            .chain(booked_by_bodies.iter().filter(|_| !through_bodies))
+            .filter(|(id, _)| access.has_write(*id))
+            .map(|(_, name)| *name)
+            .collect();
+        if !written.is_empty() {
+            return Err(SimError::Schedule(format!(
+                "system `{}` writes {}, which belong to the core: an extension reads the clock \
+                 and counters (agglo::params::RunView) and changes bodies through `Bodies`, \
+                 which books the work and heat it adds in the energy ledger \
+                 (docs/extending.md, \"What an extension may write\")",
+                name(),
+                written.join(", ")
             )));
         }
     }
@@ -792,7 +924,7 @@ impl Simulation {
         *self.world.resource::<PrimaryGrain>()
     }
     /// The core's own counts, when its plugin reports them
-    /// ([`SimBuilder::report_core_stats`]; the event core does).
+    /// ([`crate::core_only::SimBuilderCore::report_core_stats`]; the event core does).
     pub fn core_stats(&self) -> Option<EventStats> {
         self.core_stats.map(|read| read(&self.world))
     }
@@ -1025,10 +1157,10 @@ impl Simulation {
         let now = self.clock().time;
         let clockwork = self.clockwork();
         let mut c = BodyColumns::with_capacity(self.body_count());
-        for (id, p, v, m, b, t, h, n, lt) in query.iter(&self.world) {
-            let state = BodyState::from((id, p, v, m, b, t, h, n));
+        for body in query.iter(&self.world) {
+            let state = body.state();
             c.push(&if lazy {
-                state_at(&state, lt.0, now, &clockwork)
+                state_at(&state, body.local_time.0, now, &clockwork)
             } else {
                 state
             });
@@ -1052,10 +1184,10 @@ impl Simulation {
         let clockwork = self.clockwork();
         let mut bodies: Vec<BodyState> = query
             .iter(&self.world)
-            .map(|(id, p, v, m, b, t, h, n, lt)| {
-                let state = BodyState::from((id, p, v, m, b, t, h, n));
+            .map(|body| {
+                let state = body.state();
                 if lazy {
-                    state_at(&state, lt.0, now, &clockwork)
+                    state_at(&state, body.local_time.0, now, &clockwork)
                 } else {
                     state
                 }

@@ -139,15 +139,8 @@ impl SimPlugin for ChargedGrains {
         let q0 = sim.resource::<ChargeLaw>().q0;
         sim.carry::<Charge>("charge", Combine::Sum, Split::ByMass)
             .init_resource::<ChargeEffects>()
-            .add_impact_outcome_systems(coulomb_sticking);
-        let world = sim.world_mut();
-        let mut query = world.query_filtered::<(Entity, &ParticleId), With<Particle>>();
-        let bodies: Vec<(Entity, u64)> = query.iter(world).map(|(e, id)| (e, id.0)).collect();
-        for (entity, id) in bodies {
-            world
-                .entity_mut(entity)
-                .insert(Charge(initial_charge(q0, id)));
-        }
+            .add_impact_outcome_systems(coulomb_sticking)
+            .init_each_body(move |body| Charge(initial_charge(q0, body.id)));
     }
 }
 

@@ -48,8 +48,8 @@ extern crate self as agglo;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{
-    bodies, carried, cloud, components, error, hooks, laws, observables, params, readable,
-    resources, scene, schedule, setup, totals,
+    bodies, carried, cloud, components, core_only, error, hooks, laws, observables, params,
+    readable, resources, scene, schedule, setup, totals,
 };
 /// The built-in physics plugins (the `agglo-systems` crate).
 pub use agglo_systems as systems;
@@ -58,8 +58,9 @@ pub use agglo_systems as systems;
 pub use bevy_ecs;
 pub use glam;
 
-/// The types most users need: the engine's prelude (bodies, clock, stages, plugin API)
-/// and the built-in physics.
+/// The types most users need: the engine's prelude (the plugin API, the stages, bodies,
+/// read-only views of the scene and the run; docs/extending.md, "The plugin API"), the
+/// scenario and the built-in physics.
 pub mod prelude {
     pub use crate::scenario::Scenario;
     pub use agglo_engine::prelude::*;

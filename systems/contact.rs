@@ -15,6 +15,11 @@
 //! nothing changed), [`Counters`] (deferred contacts, overlap violations).
 
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::QueryData;
+
+use agglo_engine::core_only::SimBuilderCore;
+use agglo_engine::scene::{Core, Physics, TimeControl, event_core_needs};
+use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
@@ -49,26 +54,32 @@ pub struct NeighbourTable {
     order: Vec<(u64, Entity, DVec3, DVec3, f64, f64)>,
 }
 
-pub type BodyQuery<'w, 's> = Query<
-    'w,
-    's,
-    (
-        Entity,
-        &'static ParticleId,
-        &'static Position,
-        &'static Velocity,
-        &'static Radius,
-        &'static Mass,
-    ),
-    With<Particle>,
->;
+/// What the stepped core's contact search and step choice read of a body.
+#[derive(QueryData)]
+pub struct SearchBody {
+    pub entity: Entity,
+    pub id: &'static ParticleId,
+    pub position: &'static Position,
+    pub velocity: &'static Velocity,
+    pub radius: &'static Radius,
+    pub mass: &'static Mass,
+}
+
+pub type BodyQuery<'w, 's> = Query<'w, 's, SearchBody, With<Particle>>;
 
 impl NeighbourTable {
     /// Refill the table from the world and search pairs within `margin` [m].
     pub fn rebuild(&mut self, bodies: &BodyQuery, geometry: &BoxGeometry, margin: f64) {
         self.order.clear();
-        for (e, id, p, v, r, m) in bodies.iter() {
-            self.order.push((id.0, e, p.0, v.0, r.0, m.0));
+        for b in bodies.iter() {
+            self.order.push((
+                b.id.0,
+                b.entity,
+                b.position.0,
+                b.velocity.0,
+                b.radius.0,
+                b.mass.0,
+            ));
         }
         // Query order is not guaranteed: sort by the stable id (nearly sorted → cheap).
         self.order.sort_by_key(|row| row.0);
@@ -173,9 +184,9 @@ impl NeighbourTable {
         let mut all_present = true;
         for k in 0..self.entities.len() {
             match bodies.get(self.entities[k]) {
-                Ok((_, _, p, v, _, _)) => {
-                    self.positions[k] = p.0;
-                    self.velocities[k] = v.0;
+                Ok(b) => {
+                    self.positions[k] = b.position.0;
+                    self.velocities[k] = b.velocity.0;
                 }
                 Err(_) => all_present = false,
             }
@@ -265,7 +276,7 @@ pub fn detect_contacts(
     } = books;
     changed.0 = false;
     if clock.bodies_reshaped || !table.try_reuse(&bodies, &geometry) {
-        let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
+        let max_radius = bodies.iter().map(|b| b.radius.0).fold(0.0, f64::max);
         let margin = search_margin(&time.stepping, primary.radius, max_radius);
         table.rebuild(&bodies, &geometry, margin);
     }
@@ -360,5 +371,60 @@ pub fn detect_contacts(
             separation,
             gap,
         });
+    }
+}
+
+/// Contact detection (stage 1) and step-size selection (stage 5): the event core
+/// when the scene allows it (docs/model.md §4), the stepped core otherwise.
+pub struct ContactPlugin;
+impl SimPlugin for ContactPlugin {
+    fn name(&self) -> &'static str {
+        "contact"
+    }
+    fn build(&self, sim: &mut SimBuilder) {
+        let time = sim.resource::<TimeControl>().clone();
+        let physics = *sim.resource::<Physics>();
+        let why = core_reason(&time, &physics, sim.uses_event_core());
+        sim.explain_core(why);
+        if sim.uses_event_core() {
+            let brute_force = time.core == Core::EventsBruteForce;
+            // Built last, so that it sees every setting (a field set by an extension).
+            sim.when_built(move |world| {
+                let core = crate::events::build_core(world, brute_force);
+                world.insert_resource(core);
+            })
+            .add_core_systems(StepSystems::Contact, crate::events::pop_due_contacts)
+            .add_core_systems(StepSystems::TimeStep, crate::events::schedule_next_step)
+            .add_core_systems(StepSystems::Boundary, crate::events::report_overlaps)
+            .report_core_stats(|world| world.resource::<crate::events::core::EventCore>().stats)
+            .add_restart_part(crate::events::resync::restart_part());
+            return;
+        }
+        sim.init_resource::<NeighbourTable>()
+            .init_resource::<ContactScratch>()
+            .add_restart_part(ContactScratch::restart_part())
+            .add_core_systems(StepSystems::Contact, detect_contacts)
+            .add_core_systems(StepSystems::TimeStep, crate::time_step::choose_time_step);
+    }
+}
+
+/// Why the scene runs on the core it runs on, in the scenario's terms.
+fn core_reason(time: &TimeControl, physics: &Physics, event_core: bool) -> String {
+    match time.core {
+        Core::Events => "time.core = \"events\"".into(),
+        Core::EventsBruteForce => {
+            "time.core = \"events_brute_force\" (the O(N²) reference predictor)".into()
+        }
+        Core::Stepped => "time.core = \"stepped\"".into(),
+        Core::Auto if event_core => "time.core = \"auto\" and the scene allows it \
+             (adaptive stepping with step_factor = 1, contact rule \"all\", cooling not \"explicit\" or \"explicit_clamped\")"
+            .into(),
+        // The obstacle in the words `validate` uses under `time.core` (one source for the
+        // rule, engine/scene.rs, so the two cannot drift apart).
+        Core::Auto => format!(
+            "time.core = \"auto\", and {}",
+            event_core_needs(time, physics)
+                .unwrap_or_else(|| "the scene does not fit the event core".into())
+        ),
     }
 }

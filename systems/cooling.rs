@@ -14,6 +14,10 @@
 
 use bevy_ecs::prelude::*;
 
+use agglo_engine::core_only::SimBuilderCore;
+use agglo_engine::scene::CoolingMethod;
+use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
+
 use agglo_engine::components::{Hardness, Mass, Particle, Radius, Temperature};
 use agglo_engine::resources::{EnergyLedger, SimClock};
 use agglo_engine::scene::{Material, Physics};
@@ -44,6 +48,37 @@ pub fn cool_bodies(
         h.0 = material.hardness(new);
     }
     ledger.cooling_loss += lost;
+}
+
+/// Cooling (stage 6); not scheduled when off or when ε = hc = 0, nor on the event core,
+/// which cools each body over the whole interval when it is read (`engine/bodies.rs`).
+pub struct CoolingPlugin;
+impl SimPlugin for CoolingPlugin {
+    fn name(&self) -> &'static str {
+        "cooling"
+    }
+    fn build(&self, sim: &mut SimBuilder) {
+        match no_cooling_system(sim) {
+            Some(why) => sim.leave_out(why),
+            None => sim.add_core_systems(StepSystems::Cooling, cool_bodies),
+        };
+    }
+}
+
+/// Why the scene schedules no cooling system, if it schedules none.
+fn no_cooling_system(sim: &SimBuilder) -> Option<&'static str> {
+    let material = sim.resource::<Material>();
+    if sim.resource::<Physics>().cooling == CoolingMethod::Off {
+        Some("cooling off: physics.cooling = \"off\"")
+    } else if material.epsilon == 0.0 && material.hc == 0.0 {
+        Some("cooling off: ε = hc = 0 (material.epsilon, material.hc)")
+    } else if sim.uses_event_core() {
+        Some(
+            "cooling: done lazily by the event core (each body cooled exactly over its interval when read)",
+        )
+    } else {
+        None
+    }
 }
 
 #[cfg(test)]

@@ -13,6 +13,10 @@
 //! Reads: every body, [`EnergyLedger`]. Writes: [`InvariantReport`], [`Counters`].
 
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::QueryData;
+
+use agglo_engine::core_only::SimBuilderCore;
+use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 use agglo_engine::params::SceneConstants;
 use agglo_engine::scene::Material;
@@ -273,7 +277,7 @@ impl RunningTotals {
     /// time, which the running totals do not follow, so they are recomputed — in the
     /// run that takes the checkpoint and in a resumed one alike).
     pub fn recompute(world: &mut World) -> Result<(), String> {
-        let start = crate::initial_totals(world);
+        let start = initial_totals(world);
         let mut running = world
             .get_resource_mut::<RunningTotals>()
             .ok_or("the scene keeps no running totals")?;
@@ -293,19 +297,18 @@ impl RunningTotals {
     }
 }
 
-type TotalsQuery<'w, 's> = Query<
-    'w,
-    's,
-    (
-        &'static ParticleId,
-        &'static Position,
-        &'static Velocity,
-        &'static Mass,
-        &'static Radius,
-        &'static Temperature,
-    ),
-    With<Particle>,
->;
+/// What the invariant checks read of a body: its state and totals.
+#[derive(QueryData)]
+pub struct CheckedBody {
+    pub id: &'static ParticleId,
+    pub position: &'static Position,
+    pub velocity: &'static Velocity,
+    pub mass: &'static Mass,
+    pub radius: &'static Radius,
+    pub temperature: &'static Temperature,
+}
+
+type TotalsQuery<'w, 's> = Query<'w, 's, CheckedBody, With<Particle>>;
 
 /// The event core's checks: the totals follow the bodies each step touched; every
 /// `full_every` steps and at the end they are recomputed over all bodies.
@@ -330,7 +333,15 @@ pub fn check_step_totals(
         .map(|x| x.0)
         .chain(events.spawned.iter().copied());
     for entity in changed {
-        let Ok((id, p, v, m, b, t)) = bodies.get(entity) else {
+        let Ok(CheckedBodyItem {
+            id,
+            position: p,
+            velocity: v,
+            mass: m,
+            radius: b,
+            temperature: t,
+        }) = bodies.get(entity)
+        else {
             continue; // removed this step
         };
         let finite = p.0.is_finite() && v.0.is_finite() && m.0.is_finite() && b.0.is_finite();
@@ -351,7 +362,12 @@ pub fn check_step_totals(
     if (clock.step + 1).is_multiple_of(running.full_every) || last {
         // Full recomputation: also catches a change no system reported.
         checks.check_now(&bodies);
-        let all = totals(bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)), c);
+        let all = totals(
+            bodies
+                .iter()
+                .map(|b| (b.mass.0, b.velocity.0, b.temperature.0)),
+            c,
+        );
         running.reset(&all);
     } else if (clock.step + 1).is_multiple_of(checks.settings.every) {
         let now = running.totals();
@@ -427,7 +443,15 @@ impl Checks<'_, '_> {
     pub fn check_now(&mut self, bodies: &TotalsQuery) {
         let step = self.clock.step;
         let mut violations: Vec<String> = Vec::new();
-        for (id, p, v, m, b, t) in bodies.iter() {
+        for CheckedBodyItem {
+            id,
+            position: p,
+            velocity: v,
+            mass: m,
+            radius: b,
+            temperature: t,
+        } in bodies.iter()
+        {
             let finite = p.0.is_finite() && v.0.is_finite() && m.0.is_finite() && b.0.is_finite();
             if !finite || !t.0.is_finite() || t.0 <= 0.0 || m.0 <= 0.0 {
                 violations.push(format!(
@@ -439,11 +463,54 @@ impl Checks<'_, '_> {
         }
         self.record(violations);
         let now = totals(
-            bodies.iter().map(|(_, _, v, m, _, t)| (m.0, v.0, t.0)),
+            bodies
+                .iter()
+                .map(|b| (b.mass.0, b.velocity.0, b.temperature.0)),
             self.scene.material.C,
         );
         self.compare(&now);
     }
+}
+
+/// Invariant checks (stage 9), when `diagnostics.invariants` is on.
+pub struct DiagnosticsPlugin;
+impl SimPlugin for DiagnosticsPlugin {
+    fn name(&self) -> &'static str {
+        "diagnostics"
+    }
+    fn build(&self, sim: &mut SimBuilder) {
+        // The scene's `diagnostics` section, or the defaults when it gives none.
+        let d = sim
+            .world_mut()
+            .get_resource_or_init::<Diagnostics>()
+            .clone();
+        if d.invariants && sim.uses_event_core() {
+            let start = initial_totals(sim.world_mut());
+            let full_every = d.every.max(sim.info().initial_bodies as u64);
+            sim.insert_resource(RunningTotals::new(&start, full_every))
+                .add_core_systems(StepSystems::Diagnostics, check_step_totals)
+                .add_restart_part(agglo_engine::restart::RestartPart {
+                    name: "running_totals",
+                    save: |_| Vec::new(),
+                    load: |world, _| RunningTotals::recompute(world),
+                });
+        } else if d.invariants {
+            sim.add_core_systems(StepSystems::Diagnostics, check_invariants);
+        } else {
+            sim.leave_out("diagnostics off: diagnostics.invariants = false");
+        }
+    }
+}
+
+/// Totals over the bodies now in the world.
+pub(crate) fn initial_totals(world: &mut World) -> Totals {
+    let c = world.resource::<Material>().C;
+    let rows: Vec<_> = world
+        .query_filtered::<(&Mass, &Velocity, &Temperature), With<Particle>>()
+        .iter(world)
+        .map(|(m, v, t)| (m.0, v.0, t.0))
+        .collect();
+    totals(rows.into_iter(), c)
 }
 
 #[cfg(test)]

@@ -7,6 +7,9 @@
 //! ledger.
 
 use bevy_ecs::prelude::*;
+
+use agglo_engine::core_only::SimBuilderCore;
+use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 use glam::DVec3;
 
 use agglo_engine::components::{Mass, Particle, Position, Radius, Velocity};
@@ -46,4 +49,23 @@ pub fn drift(
     ledger.force_work_turnover += work_turnover;
     ledger.force_impulse = (DVec3::from_array(ledger.force_impulse) + impulse).to_array();
     ledger.force_impulse_turnover += impulse_turnover;
+}
+
+/// Drift (stage 7) and periodic wrapping (stage 8); on the event core both happen when
+/// a body is read, so nothing is scheduled.
+pub struct MotionPlugin;
+impl SimPlugin for MotionPlugin {
+    fn name(&self) -> &'static str {
+        "motion"
+    }
+    fn build(&self, sim: &mut SimBuilder) {
+        if sim.uses_event_core() {
+            sim.leave_out(
+                "drift, boundary: done lazily by the event core (each body moved and wrapped when read)",
+            );
+            return;
+        }
+        sim.add_core_systems(StepSystems::Drift, drift)
+            .add_core_systems(StepSystems::Boundary, crate::boundary::wrap_positions);
+    }
 }

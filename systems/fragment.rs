@@ -19,6 +19,11 @@
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::QueryData;
+
+use agglo_engine::core_only::SimBuilderCore;
+use agglo_engine::scene::{Material, Physics};
+use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 use agglo_engine::params::{RunBooks, SceneConstants};
 use glam::DVec3;
@@ -125,20 +130,19 @@ pub fn closest_distance(points: &[DVec3]) -> f64 {
     closest
 }
 
-type FragmentQuery<'w, 's> = Query<
-    'w,
-    's,
-    (
-        &'static ParticleId,
-        &'static Position,
-        &'static Velocity,
-        &'static Mass,
-        &'static Radius,
-        &'static Temperature,
-        &'static Primaries,
-    ),
-    With<Particle>,
->;
+/// What fragmentation reads of a body it may break (the pieces are new bodies).
+#[derive(QueryData)]
+pub struct FragmentBody {
+    pub id: &'static ParticleId,
+    pub position: &'static Position,
+    pub velocity: &'static Velocity,
+    pub mass: &'static Mass,
+    pub radius: &'static Radius,
+    pub temperature: &'static Temperature,
+    pub primaries: &'static Primaries,
+}
+
+type FragmentQuery<'w, 's> = Query<'w, 's, FragmentBody, With<Particle>>;
 
 /// The system.
 #[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
@@ -180,7 +184,16 @@ pub fn fragment_bodies(
     // Id allocation order must not depend on query order.
     absorbed.sort_by_key(|x| x.0);
     for &(_, entity, energy) in absorbed.iter() {
-        let Ok((id, p, v, m, b, t, n)) = bodies.get(entity) else {
+        let Ok(FragmentBodyItem {
+            id,
+            position: p,
+            velocity: v,
+            mass: m,
+            radius: b,
+            temperature: t,
+            primaries: n,
+        }) = bodies.get(entity)
+        else {
             continue;
         };
         let k = piece_count(energy, b.0, material.surface_energy());
@@ -234,6 +247,31 @@ pub fn fragment_bodies(
         ledger.fracture_energy += dz;
         clock.bodies_reshaped = true;
         changed.0 = true;
+    }
+}
+
+/// Fragmentation (stage 4); not scheduled when γ = ∞.
+pub struct FragmentPlugin;
+impl SimPlugin for FragmentPlugin {
+    fn name(&self) -> &'static str {
+        "fragment"
+    }
+    fn build(&self, sim: &mut SimBuilder) {
+        match fragmentation_off(sim.resource::<Material>(), sim.resource::<Physics>()) {
+            Some(why) => sim.leave_out(format!("fragmentation off: {why}")),
+            None => sim.add_core_systems(StepSystems::Fragment, fragment_bodies),
+        };
+    }
+}
+
+/// Why the scene has no fragmentation, if it has none.
+fn fragmentation_off(material: &Material, physics: &Physics) -> Option<&'static str> {
+    if material.surface_energy() == f64::INFINITY {
+        Some("γ = ∞ (material.gamma = null)")
+    } else if !physics.fragmentation {
+        Some("physics.fragmentation = false")
+    } else {
+        None
     }
 }
 

@@ -22,6 +22,11 @@
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::QueryData;
+
+use agglo_engine::core_only::SimBuilderCore;
+use agglo_engine::scene::Physics;
+use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 use agglo_engine::params::{RunBooks, SceneConstants};
 
@@ -33,21 +38,21 @@ use agglo_engine::hooks::{MergeMessage, Messages};
 use agglo_engine::resources::ImpactRecords;
 use agglo_engine::scene::ImpactsPerStep;
 
-type MergeQuery<'w, 's> = Query<
-    'w,
-    's,
-    (
-        &'static mut Position,
-        &'static mut Velocity,
-        &'static mut Mass,
-        &'static mut Radius,
-        &'static mut Temperature,
-        &'static mut Hardness,
-        &'static mut Primaries,
-        &'static ParticleId,
-    ),
-    With<Particle>,
->;
+/// What a merge reads of both bodies and writes of the survivor.
+#[derive(QueryData)]
+#[query_data(mutable)]
+pub struct MergeBody {
+    pub position: &'static mut Position,
+    pub velocity: &'static mut Velocity,
+    pub mass: &'static mut Mass,
+    pub radius: &'static mut Radius,
+    pub temperature: &'static mut Temperature,
+    pub hardness: &'static mut Hardness,
+    pub primaries: &'static mut Primaries,
+    pub id: &'static ParticleId,
+}
+
+type MergeQuery<'w, 's> = Query<'w, 's, MergeBody, With<Particle>>;
 
 /// The system.
 #[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
@@ -92,7 +97,7 @@ pub fn merge_bonded(
         let chained = (a, b) != (record.a, record.b);
         let (a, b) = if chained {
             match (bodies.get(a), bodies.get(b)) {
-                (Ok(x), Ok(y)) if y.7.0 < x.7.0 => (b, a),
+                (Ok(x), Ok(y)) if y.id.0 < x.id.0 => (b, a),
                 (Ok(_), Ok(_)) => (a, b),
                 _ => continue,
             }
@@ -103,12 +108,27 @@ pub fn merge_bonded(
             continue;
         };
         let separation = if chained {
-            geometry.min_image(gone.0.0 - keep.0.0)
+            geometry.min_image(gone.position.0 - keep.position.0)
         } else {
             record.separation
         };
-        let (mut pa, mut va, mut ma, mut ra, mut ta, mut ha, mut na, id_a) = keep;
-        let (_, vb, mb, _, tb, _, nb, id_b) = gone;
+        let MergeBodyItem {
+            position: mut pa,
+            velocity: mut va,
+            mass: mut ma,
+            radius: mut ra,
+            temperature: mut ta,
+            hardness: mut ha,
+            primaries: mut na,
+            id: id_a,
+        } = keep;
+        let (vb, mb, tb, nb, id_b) = (
+            gone.velocity,
+            gone.mass,
+            gone.temperature,
+            gone.primaries,
+            gone.id,
+        );
         // Mass is extensive, temperature mass-weighted (one C), primaries extensive.
         let m = Combine::Sum.combine(ma.0, 0.0, mb.0, 0.0);
         let relative_motion = if several_impacts {
@@ -147,5 +167,20 @@ pub fn merge_bonded(
             absorbed.insert(b, a);
         }
         clock.bodies_reshaped = true;
+    }
+}
+
+/// Merging of bonded pairs (stage 3).
+pub struct MergePlugin;
+impl SimPlugin for MergePlugin {
+    fn name(&self) -> &'static str {
+        "merge"
+    }
+    fn build(&self, sim: &mut SimBuilder) {
+        if sim.resource::<Physics>().merging {
+            sim.add_core_systems(StepSystems::Merge, merge_bonded);
+        } else {
+            sim.leave_out("merging off: physics.merging = false");
+        }
     }
 }

@@ -52,7 +52,7 @@ pub fn choose_time_step(
         } => {
             let skin = time.stepping.search_skin(primary.radius);
             if clock.bodies_reshaped {
-                let max_radius = bodies.iter().map(|b| b.4.0).fold(0.0, f64::max);
+                let max_radius = bodies.iter().map(|b| b.radius.0).fold(0.0, f64::max);
                 table.rebuild(
                     &bodies,
                     &geometry,

@@ -6,6 +6,8 @@
 
 use agglo::carried::{Carried, Combine, Split};
 use agglo::components::{Particle, ParticleId};
+// The Python front is a driver, not an extension: it sets every body's initial values.
+use agglo::core_only::SimBuilderCore;
 use agglo::schedule::SimBuilder;
 use bevy_ecs::prelude::*;
 

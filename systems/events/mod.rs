@@ -24,6 +24,7 @@ pub mod resync;
 pub mod slot_ids;
 
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::QueryData;
 
 use agglo_engine::cloud::PrimaryGrain;
 use agglo_engine::field::Field;
@@ -46,35 +47,35 @@ use agglo_engine::totals::Totals;
 /// Events closer than this (relative to t) count as simultaneous.
 const SIMULTANEOUS: f64 = 1e-13;
 
-type LazyQuery<'w, 's> = Query<
-    'w,
-    's,
-    (
-        &'static ParticleId,
-        &'static mut Position,
-        &'static mut Velocity,
-        &'static Mass,
-        &'static Radius,
-        &'static mut Temperature,
-        &'static mut Hardness,
-        &'static mut LocalTime,
-    ),
-    With<Particle>,
->;
+/// A body met by a due contact: brought to now (every state that changes in flight,
+/// writable) and read for the contact's geometry.
+#[derive(QueryData)]
+#[query_data(mutable)]
+pub struct DueBody {
+    pub id: &'static ParticleId,
+    pub position: &'static mut Position,
+    pub velocity: &'static mut Velocity,
+    pub mass: &'static Mass,
+    pub radius: &'static Radius,
+    pub temperature: &'static mut Temperature,
+    pub hardness: &'static mut Hardness,
+    pub local_time: &'static mut LocalTime,
+}
 
-type ReadQuery<'w, 's> = Query<
-    'w,
-    's,
-    (
-        &'static ParticleId,
-        &'static Position,
-        &'static Velocity,
-        &'static Mass,
-        &'static Radius,
-        &'static LocalTime,
-    ),
-    With<Particle>,
->;
+type LazyQuery<'w, 's> = Query<'w, 's, DueBody, With<Particle>>;
+
+/// What a body's predicted flight is made from: its state at its reference time.
+#[derive(QueryData)]
+pub struct FlightData {
+    pub id: &'static ParticleId,
+    pub position: &'static Position,
+    pub velocity: &'static Velocity,
+    pub mass: &'static Mass,
+    pub radius: &'static Radius,
+    pub local_time: &'static LocalTime,
+}
+
+type ReadQuery<'w, 's> = Query<'w, 's, FlightData, With<Particle>>;
 
 fn horizon(now: f64) -> f64 {
     now + SIMULTANEOUS * now.abs().max(f64::MIN_POSITIVE)
@@ -249,21 +250,29 @@ pub fn pop_due_contacts(
         };
         // Each body's contribution to the totals before it is brought forward: the heat
         // it loses on the way is tallied in the ledger and shows in its state after.
-        let before_a = Totals::of_body(a.3.0, a.2.0, a.5.0, heat_capacity);
-        let before_b = Totals::of_body(b.3.0, b.2.0, b.5.0, heat_capacity);
+        let before_a = Totals::of_body(a.mass.0, a.velocity.0, a.temperature.0, heat_capacity);
+        let before_b = Totals::of_body(b.mass.0, b.velocity.0, b.temperature.0, heat_capacity);
         for body in [&mut a, &mut b] {
-            let (_, p, v, m, r, t, h, lt) = body;
-            // Velocity changes only in a field; its change ticks are not used.
-            let lazy = LazyBody::of(p, v.bypass_change_detection(), m, r, t, h, lt);
+            let lazy = LazyBody::of(
+                &mut body.position,
+                // Velocity changes only in a field; its change ticks are not used.
+                body.velocity.bypass_change_detection(),
+                body.mass,
+                body.radius,
+                &mut body.temperature,
+                &mut body.hardness,
+                &mut body.local_time,
+            );
             bring_to(now, &clockwork, lazy).enter(&mut ledger);
         }
-        let reach = a.4.0 + b.4.0;
-        let separation = core.contact_separation(a.1.0, b.1.0, reach, a.2.0 - b.2.0);
+        let reach = a.radius.0 + b.radius.0;
+        let relative = a.velocity.0 - b.velocity.0;
+        let separation = core.contact_separation(a.position.0, b.position.0, reach, relative);
         let distance = separation.length();
         let normal = separation / distance;
         // Approaching along the line of centres (rounding may say otherwise for a
         // grazing pair: then there is nothing to resolve).
-        if distance == 0.0 || (a.2.0 - b.2.0).dot(normal) <= 0.0 {
+        if distance == 0.0 || relative.dot(normal) <= 0.0 {
             continue;
         }
         taken.push(sa);
@@ -273,8 +282,8 @@ pub fn pop_due_contacts(
         contacts.contacts.push(Contact {
             a: ea,
             b: eb,
-            id_a: a.0.0,
-            id_b: b.0.0,
+            id_a: a.id.0,
+            id_b: b.id.0,
             normal,
             separation,
             gap: distance - reach,
@@ -284,15 +293,15 @@ pub fn pop_due_contacts(
 
 /// A body's trajectory as the world holds it (None if the entity is gone).
 fn trajectory_of(bodies: &ReadQuery, field: &Field, entity: Entity) -> Option<Trajectory> {
-    let (id, p, v, m, r, lt) = bodies.get(entity).ok()?;
+    let body = bodies.get(entity).ok()?;
     Some(Trajectory {
         entity,
-        id: id.0,
-        position: p.0,
-        velocity: v.0,
-        t_ref: lt.0,
-        radius: r.0,
-        tau: field.relaxation_time(m.0, r.0),
+        id: body.id.0,
+        position: body.position.0,
+        velocity: body.velocity.0,
+        t_ref: body.local_time.0,
+        radius: body.radius.0,
+        tau: field.relaxation_time(body.mass.0, body.radius.0),
     })
 }
 

@@ -28,11 +28,17 @@
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::QueryData;
+
+use agglo_engine::core_only::SimBuilderCore;
+use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 use agglo_engine::params::{RunBooks, SceneConstants};
 use agglo_engine::scene::Material;
 
-use agglo_engine::components::{Hardness, Mass, Particle, Position, Radius, Temperature, Velocity};
+use agglo_engine::components::{
+    Hardness, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
+};
 use agglo_engine::hooks::{
     ImpactMessage, ImpactOutcome, ImpactOutcomeSystems, Messages, OutcomeChange, PendingImpact,
     PendingImpacts,
@@ -70,19 +76,19 @@ pub fn pair_model(material: &Material, settings: &ImpactModel) -> PairModel {
     }
 }
 
-type ImpactQuery<'w, 's> = Query<
-    'w,
-    's,
-    (
-        &'static mut Position,
-        &'static mut Velocity,
-        &'static Mass,
-        &'static Radius,
-        &'static mut Temperature,
-        &'static mut Hardness,
-    ),
-    With<Particle>,
->;
+/// What an impact reads and writes of each body of the pair.
+#[derive(QueryData)]
+#[query_data(mutable)]
+pub struct ImpactBody {
+    pub position: &'static mut Position,
+    pub velocity: &'static mut Velocity,
+    pub mass: &'static Mass,
+    pub radius: &'static Radius,
+    pub temperature: &'static mut Temperature,
+    pub hardness: &'static mut Hardness,
+}
+
+type ImpactQuery<'w, 's> = Query<'w, 's, ImpactBody, With<Particle>>;
 
 /// The message an impact writes for extensions (engine/hooks.rs), from the pair before
 /// the impact and the outcome.
@@ -260,15 +266,6 @@ fn redo(
     }
 }
 
-type ImpactItem<'a> = (
-    Mut<'a, Position>,
-    Mut<'a, Velocity>,
-    &'a Mass,
-    &'a Radius,
-    Mut<'a, Temperature>,
-    Mut<'a, Hardness>,
-);
-
 /// What applying an outcome writes besides the pair: the books and the messages.
 struct Apply<'a> {
     model: PairModel,
@@ -289,11 +286,25 @@ impl Apply<'_> {
         contact: &Contact,
         (body_a, body_b): (&PairBody, &PairBody),
         out: &PairOutcome,
-        a: ImpactItem,
-        b: ImpactItem,
+        a: ImpactBodyItem<'_, '_>,
+        b: ImpactBodyItem<'_, '_>,
     ) {
-        let (mut pa, mut va, ma, ra, mut ta, mut ha) = a;
-        let (mut pb, mut vb, mb, rb, mut tb, mut hb) = b;
+        let ImpactBodyItem {
+            position: mut pa,
+            velocity: mut va,
+            mass: ma,
+            radius: ra,
+            temperature: mut ta,
+            hardness: mut ha,
+        } = a;
+        let ImpactBodyItem {
+            position: mut pb,
+            velocity: mut vb,
+            mass: mb,
+            radius: rb,
+            temperature: mut tb,
+            hardness: mut hb,
+        } = b;
         let (material, geometry, settings) = (self.material, self.geometry, self.settings);
         if let Some(messages) = self.messages.as_mut() {
             messages.write(impact_message(
@@ -389,12 +400,12 @@ struct Solved {
 #[derive(Resource, Debug, Default)]
 pub struct SolvedImpacts(Vec<Solved>);
 
-fn pair_bodies(a: &ImpactItem, b: &ImpactItem) -> (PairBody, PairBody) {
-    let body = |x: &ImpactItem| PairBody {
-        mass: x.2.0,
-        radius: x.3.0,
-        velocity: x.1.0,
-        temperature: x.4.0,
+fn pair_bodies(a: &ImpactBodyItem<'_, '_>, b: &ImpactBodyItem<'_, '_>) -> (PairBody, PairBody) {
+    let body = |x: &ImpactBodyItem<'_, '_>| PairBody {
+        mass: x.mass.0,
+        radius: x.radius.0,
+        velocity: x.velocity.0,
+        temperature: x.temperature.0,
     };
     (body(a), body(b))
 }
@@ -526,7 +537,39 @@ pub fn apply_impact_outcomes(
 }
 
 /// Adds [`apply_impact_outcomes`] where it runs (for
-/// [`agglo_engine::schedule::SimBuilder::set_impact_outcome_applier`]).
+/// [`agglo_engine::core_only::SimBuilderCore::set_impact_outcome_applier`]).
 pub fn add_outcome_applier(schedule: &mut Schedule) {
     schedule.add_systems(apply_impact_outcomes.in_set(ImpactOutcomeSystems::Apply));
+}
+
+/// The impact / heat solve (stage 2).
+pub struct ImpactPlugin;
+impl SimPlugin for ImpactPlugin {
+    fn name(&self) -> &'static str {
+        "impact"
+    }
+    fn build(&self, sim: &mut SimBuilder) {
+        // The scene's `impact` section, or the defaults when it gives none.
+        sim.init_resource::<ImpactModel>()
+            .init_resource::<SolvedImpacts>()
+            .add_core_systems(StepSystems::Impact, resolve_impacts)
+            .set_impact_outcome_applier(add_outcome_applier);
+        let settings = *sim.resource::<ImpactModel>();
+        if settings.restitution.is_some() {
+            // The TC model against inelastic collapse (docs/model.md §5.4).
+            let t_c = settings.collapse_time.unwrap_or_else(|| {
+                let b0 = sim.resource::<agglo_engine::cloud::PrimaryGrain>().radius;
+                let world = sim.world_mut();
+                let mut query = world.query_filtered::<(&ParticleId, &Velocity), With<Particle>>();
+                let mut bodies: Vec<_> = query.iter(world).map(|(id, v)| (id.0, v.0)).collect();
+                bodies.sort_by_key(|b| b.0); // sums in id order, not entity order
+                let velocities: Vec<_> = bodies.into_iter().map(|b| b.1).collect();
+                default_collapse_time(b0, &velocities)
+            });
+            if t_c > 0.0 {
+                sim.insert_resource(CollapseGuard::new(t_c))
+                    .add_restart_part(CollapseGuard::restart_part());
+            }
+        }
+    }
 }

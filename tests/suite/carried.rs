@@ -41,14 +41,11 @@ impl SimPlugin for Carry {
     fn build(&self, sim: &mut SimBuilder) {
         sim.carry::<Charge>("charge", Combine::Sum, Split::ByMass)
             .carry::<Label>("label", Combine::Max, Split::Copy);
-        let world = sim.world_mut();
-        let mut q = world.query_filtered::<(Entity, &ParticleId), With<Particle>>();
-        let bodies: Vec<(Entity, u64)> = q.iter(world).map(|(e, id)| (e, id.0)).collect();
-        for (e, id) in bodies {
+        sim.init_each_body(|body| {
             // Charges of both signs and several magnitudes, a label per body.
-            let q = 1e-12 * ((id as f64 * 0.618_033_988_75).fract() - 0.5);
-            world.entity_mut(e).insert((Charge(q), Label(id as f64)));
-        }
+            let q = 1e-12 * ((body.id as f64 * 0.618_033_988_75).fract() - 0.5);
+            (Charge(q), Label(body.id as f64))
+        });
     }
 }
 

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use agglo::components::Velocity;
 use agglo::prelude::*;
 use serde_json::{Value, json};
 

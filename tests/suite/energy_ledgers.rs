@@ -11,6 +11,8 @@ use std::path::Path;
 
 use agglo::bevy_ecs::prelude::*;
 use agglo::bodies::Bodies;
+use agglo::components::Velocity;
+use agglo::core_only::SimBuilderCore;
 use agglo::glam::DVec3;
 use agglo::prelude::*;
 use agglo::resources::{ImpactRecords, InvariantReport};
@@ -64,7 +66,9 @@ impl SimPlugin for WrongImpulsePlugin {
             excess: self.0,
             pairs: 0,
         })
-        .add_systems(StepSystems::Impact, wrong_impulse.after(resolve_impacts));
+        // As part of the core (SimBuilderCore): an extension's direct write of
+        // `Velocity` in the impact stage would be refused on the event core.
+        .add_core_systems(StepSystems::Impact, wrong_impulse.after(resolve_impacts));
     }
 }
 

@@ -6,6 +6,7 @@
 use crate::common;
 
 use agglo::bevy_ecs::prelude::*;
+use agglo::components::Position;
 use agglo::glam::DVec3;
 use agglo::prelude::*;
 use common::scenario;

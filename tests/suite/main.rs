@@ -41,6 +41,7 @@ mod signals;
 mod stepping;
 mod study;
 mod unfinishable_runs;
+mod walls;
 mod worked_examples;
 mod world_memory;
 mod writers;
