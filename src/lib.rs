@@ -39,6 +39,7 @@ pub mod restart;
 pub mod run;
 pub mod scenario;
 pub mod study;
+pub mod subgrid;
 pub mod validate;
 
 // The engine's modules, under the paths users and drivers know them by.

@@ -39,6 +39,7 @@ mod self_contained;
 mod signals;
 mod stepping;
 mod study;
+mod subgrid;
 mod unfinishable_runs;
 mod worked_examples;
 mod world_memory;
