@@ -13,7 +13,7 @@ use super::cell::{CellState, KeptBox, ReplicaRun, STATE_VERSION, run_replica};
 use super::config::Coupling;
 use super::error::SubgridError;
 use super::exchange::{CellInput, CellOutput};
-use super::lift::{box_volume, check_input};
+use super::lift::{box_volume, check_box, check_input};
 use super::restrict::combine;
 
 /// What a cell's step starts from, once its input and state are checked.
@@ -39,6 +39,9 @@ fn prepare(
         Some(s) => s.volume,
         None => box_volume(c, cell, input)?,
     };
+    if kept.is_none() {
+        check_box(c, cell, input, volume)?;
+    }
     Ok(Prepared {
         volume,
         time: state.map_or(0.0, |s| s.time),

@@ -63,6 +63,10 @@ impl CellState {
     pub fn box_volume(&self) -> f64 {
         self.volume
     }
+    /// The kept boxes, one per replica (empty without `keep_bodies`).
+    pub fn boxes(&self) -> &[KeptBox] {
+        &self.boxes
+    }
     /// True when the state holds bodies (a closed cell).
     pub fn keeps_bodies(&self) -> bool {
         !self.boxes.is_empty()

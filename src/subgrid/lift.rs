@@ -249,6 +249,47 @@ pub fn box_volume(c: &Coupling, cell: u64, input: &CellInput) -> Result<f64, Sub
     Ok(volume)
 }
 
+/// Check that every class the cell holds fits a box of `volume` [m³] — whether or not
+/// a replica draws one of its bodies, so the answer does not depend on the draw — and
+/// that the cell's volume fraction allows random placement. Returns the volume fraction.
+pub fn check_box(
+    c: &Coupling,
+    cell: u64,
+    input: &CellInput,
+    volume: f64,
+) -> Result<f64, SubgridError> {
+    let rho = c.base.material.rho;
+    let side = volume.cbrt();
+    let mut fraction = 0.0;
+    for (k, class) in input.classes.iter().enumerate() {
+        if class.number_density == 0.0 {
+            continue;
+        }
+        let b = radius_of(class.mass, rho);
+        if 2.0 * b > MAX_DIAMETER_PER_SIDE * side {
+            return Err(SubgridError::input(
+                cell,
+                format!("classes[{k}].mass"),
+                format!("{:e}", class.mass),
+                &format!(
+                    "a body of radius {b:e} m is too large for the box of side {side:e} m \
+                     (diameter at most {MAX_DIAMETER_PER_SIDE} of the side): raise N"
+                ),
+            ));
+        }
+        fraction += class.number_density * 4.0 / 3.0 * PI * b * b * b;
+    }
+    if fraction > MAX_VOLUME_FRACTION {
+        return Err(SubgridError::input(
+            cell,
+            "classes[*].number_density",
+            format!("volume fraction {fraction:.3}"),
+            &format!("must be at most {MAX_VOLUME_FRACTION} to place the bodies at random"),
+        ));
+    }
+    Ok(fraction)
+}
+
 /// The box of replica `seed` for `input`, in a cube of volume `volume` [m³]: a
 /// scenario with explicit bodies running over Δt. Input checked by [`check_input`].
 pub fn lift(
@@ -261,6 +302,7 @@ pub fn lift(
     let rho = c.base.material.rho;
     let (b0, m0) = c.primary();
     let side = volume.cbrt();
+    let fraction = check_box(c, cell, input, volume)?;
     let mut rng = Stream(seed);
     // Counts by random rounding, class by class in class order.
     let counts: Vec<usize> = input
@@ -279,34 +321,6 @@ pub fn lift(
             "bodies",
             format!("a box of {volume:e} m³ drew no body"),
             "raise N (the box holds Σ n_k V bodies on average)",
-        ));
-    }
-    let mut solid = 0.0;
-    for (k, class) in input.classes.iter().enumerate() {
-        if counts[k] == 0 {
-            continue;
-        }
-        let b = radius_of(class.mass, rho);
-        if 2.0 * b > MAX_DIAMETER_PER_SIDE * side {
-            return Err(SubgridError::input(
-                cell,
-                format!("classes[{k}].mass"),
-                format!("{:e}", class.mass),
-                &format!(
-                    "a body of radius {b:e} m is too large for the box of side {side:e} m \
-                     (diameter at most {MAX_DIAMETER_PER_SIDE} of the side): raise N"
-                ),
-            ));
-        }
-        solid += counts[k] as f64 * 4.0 / 3.0 * PI * b * b * b;
-    }
-    let fraction = solid / volume;
-    if fraction > MAX_VOLUME_FRACTION {
-        return Err(SubgridError::input(
-            cell,
-            "classes[*].number_density",
-            format!("volume fraction {fraction:.3}"),
-            &format!("must be at most {MAX_VOLUME_FRACTION} to place the bodies at random"),
         ));
     }
     // Largest first (ties in class order): the big ones find room before the box fills.
