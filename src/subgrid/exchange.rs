@@ -170,3 +170,129 @@ impl CellOutput {
         postcard::from_bytes(bytes).map_err(|e| format!("the output does not decode ({e})"))
     }
 }
+
+/// One figure of a [`CellOutput`] as flat arrays, for the C and Python fronts:
+/// `mean` and `se` hold `shape`'s product of values, row-major (class first, then
+/// the axis for per-class vectors).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Column {
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub shape: Vec<usize>,
+    pub mean: Vec<f64>,
+    pub se: Vec<f64>,
+}
+
+impl CellOutput {
+    /// Every figure as a named column, in a fixed order (the per-class ones first).
+    pub fn columns(&self) -> Vec<Column> {
+        let k = self.classes.len();
+        let per_class = |name, unit, f: fn(&ClassOutput) -> Stat| Column {
+            name,
+            unit,
+            shape: vec![k],
+            mean: self.classes.iter().map(|c| f(c).mean).collect(),
+            se: self.classes.iter().map(|c| f(c).se).collect(),
+        };
+        let per_class3 = |name, unit, f: fn(&ClassOutput) -> [Stat; 3]| Column {
+            name,
+            unit,
+            shape: vec![k, 3],
+            mean: self
+                .classes
+                .iter()
+                .flat_map(|c| f(c).map(|s| s.mean))
+                .collect(),
+            se: self
+                .classes
+                .iter()
+                .flat_map(|c| f(c).map(|s| s.se))
+                .collect(),
+        };
+        let scalar = |name, unit, s: Stat| Column {
+            name,
+            unit,
+            shape: vec![1],
+            mean: vec![s.mean],
+            se: vec![s.se],
+        };
+        vec![
+            per_class("number_rate", "1/(m^3 s)", |c| c.number_rate),
+            per_class("mass_rate", "kg/(m^3 s)", |c| c.mass_rate),
+            per_class3("momentum_rate", "N/m^3", |c| c.momentum_rate),
+            per_class("number_density", "1/m^3", |c| c.number_density),
+            per_class("mass_density", "kg/m^3", |c| c.mass_density),
+            per_class3("velocity", "m/s", |c| c.velocity),
+            per_class("temperature", "K", |c| c.temperature),
+            per_class("class_granular_temperature", "m^2/s^2", |c| {
+                c.granular_temperature
+            }),
+            per_class("present", "replicas", |c| Stat {
+                mean: c.present as f64,
+                se: 0.0,
+            }),
+            scalar("granular_temperature", "m^2/s^2", self.granular_temperature),
+            Column {
+                name: "gas_momentum_rate",
+                unit: "N/m^3",
+                shape: vec![3],
+                mean: self.gas_momentum_rate.map(|s| s.mean).to_vec(),
+                se: self.gas_momentum_rate.map(|s| s.se).to_vec(),
+            },
+            scalar("force_work_rate", "W/m^3", self.force_work_rate),
+            scalar("heat_loss_rate", "W/m^3", self.heat_loss_rate),
+            scalar("reaction_heat_rate", "W/m^3", self.reaction_heat_rate),
+            scalar("dissipation_rate", "W/m^3", self.dissipation_rate),
+            scalar("fracture_energy_rate", "W/m^3", self.fracture_energy_rate),
+            scalar("impact_rate", "1/(m^3 s)", self.impact_rate),
+            scalar("bond_rate", "1/(m^3 s)", self.bond_rate),
+            scalar("bounce_rate", "1/(m^3 s)", self.bounce_rate),
+            scalar("fragment_rate", "1/(m^3 s)", self.fragment_rate),
+            scalar("bodies", "bodies per box", self.bodies),
+        ]
+    }
+}
+
+impl CellInput {
+    /// An input from flat arrays of one value per class (`velocity`: 3 per class,
+    /// row-major), as the C and Python fronts hold them. Lengths are checked, values
+    /// are checked when the cell advances ([`super::check_input`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_columns(
+        cell: u64,
+        number_density: &[f64],
+        mass: &[f64],
+        velocity: &[f64],
+        temperature: &[f64],
+        granular_temperature: &[f64],
+        gas: GasState,
+        dt: f64,
+    ) -> Result<Self, super::SubgridError> {
+        let k = number_density.len();
+        for (name, len, want) in [
+            ("mass", mass.len(), k),
+            ("velocity", velocity.len(), 3 * k),
+            ("temperature", temperature.len(), k),
+            ("granular_temperature", granular_temperature.len(), k),
+        ] {
+            if len != want {
+                return Err(super::SubgridError::input(
+                    cell,
+                    name,
+                    format!("{len} values"),
+                    format!("must be {want} (number_density has {k} classes)"),
+                ));
+            }
+        }
+        let classes = (0..k)
+            .map(|i| ClassInput {
+                number_density: number_density[i],
+                mass: mass[i],
+                velocity: [velocity[3 * i], velocity[3 * i + 1], velocity[3 * i + 2]],
+                temperature: temperature[i],
+                granular_temperature: granular_temperature[i],
+            })
+            .collect();
+        Ok(Self { classes, gas, dt })
+    }
+}

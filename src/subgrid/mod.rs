@@ -60,7 +60,7 @@ pub use batch::{ReplicaTask, advance_cell, advance_cells, run_task};
 pub use cell::{CellState, KeptBox, ReplicaRun, STATE_VERSION};
 pub use config::{BoxSize, Coupling, MAX_BODIES, MAX_REPLICAS};
 pub use error::SubgridError;
-pub use exchange::{CellInput, CellOutput, ClassInput, ClassOutput, GasState, Stat};
+pub use exchange::{CellInput, CellOutput, ClassInput, ClassOutput, Column, GasState, Stat};
 pub use lift::{
     MAX_DIAMETER_PER_SIDE, MAX_VOLUME_FRACTION, box_volume, check_box, check_input,
     expected_impact_density, lift, radius_of, replica_seed,

@@ -70,6 +70,16 @@ fn a_cell_advances_and_conserves_mass() {
     let total: f64 = out.classes.iter().map(|k| k.mass_rate.mean).sum();
     let scale = out.classes[0].mass_rate.mean.abs();
     assert!(total.abs() <= 1e-12 * scale, "{total:e} vs {scale:e}");
+    // The flat columns the C and Python fronts read hold the same numbers.
+    let columns = out.columns();
+    let column = |name: &str| columns.iter().find(|c| c.name == name).unwrap();
+    assert_eq!(
+        column("number_rate").mean[0],
+        out.classes[0].number_rate.mean
+    );
+    assert_eq!(column("velocity").se[3 + 2], out.classes[1].velocity[2].se);
+    assert_eq!(column("velocity").shape, vec![5, 3]);
+    assert_eq!(column("impact_rate").mean, vec![out.impact_rate.mean]);
 }
 
 /// The output and state of every cell as bytes, by cell id.
@@ -557,6 +567,23 @@ fn bad_input_is_refused_naming_the_cell_and_the_field() {
     let mut bytes = state.to_bytes();
     bytes.truncate(3);
     assert!(CellState::from_bytes(&bytes).is_err());
+    // Flat arrays of the wrong length.
+    let e = CellInput::from_columns(
+        17,
+        &[1.0; 5],
+        &[m0; 5],
+        &[0.0; 6],
+        &[300.0; 5],
+        &[1.0; 5],
+        good.gas,
+        1e-4,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("cell 17: velocity = 6 values (must be 15"),
+        "{e}"
+    );
     // A bad coupling names its field.
     let mut c2 = c.clone();
     c2.edges[2] = c2.edges[1];
