@@ -271,7 +271,7 @@ pub fn check_box(
                 cell,
                 format!("classes[{k}].mass"),
                 format!("{:e}", class.mass),
-                &format!(
+                format!(
                     "a body of radius {b:e} m is too large for the box of side {side:e} m \
                      (diameter at most {MAX_DIAMETER_PER_SIDE} of the side): raise N"
                 ),
@@ -284,7 +284,7 @@ pub fn check_box(
             cell,
             "classes[*].number_density",
             format!("volume fraction {fraction:.3}"),
-            &format!("must be at most {MAX_VOLUME_FRACTION} to place the bodies at random"),
+            format!("must be at most {MAX_VOLUME_FRACTION} to place the bodies at random"),
         ));
     }
     Ok(fraction)

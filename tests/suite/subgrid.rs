@@ -294,9 +294,9 @@ fn dilute_sticky_cell_follows_the_ballistic_kernel_and_smoluchowski() {
     for s in 1..=sizes {
         expected[class_of_size(s)] += n[s];
     }
-    for k in 0..3 {
+    for (k, change) in expected.iter().enumerate().take(3) {
         let rate = out.classes[k].number_rate;
-        let want = expected[k] / dt;
+        let want = change / dt;
         assert!(
             (rate.mean - want).abs() <= 3.0 * rate.se,
             "class {k}: dn/dt = {:e} ± {:e}, Smoluchowski {want:e} 1/(m³ s)",
@@ -438,9 +438,9 @@ fn mass_is_exact_and_momentum_and_energy_close_against_the_ledgers() {
     let rho_p: f64 = out.classes.iter().map(|k| k.mass_density.mean).sum();
     let scale = rho_p * (3.0f64.sqrt() + 0.5) / input.dt;
     let g = c.base.field.gravity;
-    for x in 0..3 {
+    for (x, gx) in g.iter().enumerate() {
         let classes: f64 = out.classes.iter().map(|k| k.momentum_rate[x].mean).sum();
-        let gap = classes + out.gas_momentum_rate[x].mean - rho_p * g[x];
+        let gap = classes + out.gas_momentum_rate[x].mean - rho_p * gx;
         assert!(gap.abs() <= 1e-12 * scale, "axis {x}: {gap:e} of {scale:e}");
     }
     // The gas pulls the bodies along +x, so it loses momentum along x, beyond noise.
