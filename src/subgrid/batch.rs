@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::farm::{Indexed, Workers};
+use crate::farm::Workers;
 use crate::kernel::Accumulator;
 
 use super::cell::{CellState, KeptBox, ReplicaRun, STATE_VERSION, run_replica};
@@ -212,9 +212,8 @@ pub fn advance_cells(
 /// it stops the cluster; returns the exit code. Every rank must hold the same coupling.
 #[cfg(feature = "mpi")]
 pub fn serve(c: &Coupling, cluster: &crate::farm::Cluster, threads: usize) -> i32 {
-    cluster.serve(threads, &|t: &Indexed<ReplicaTask>| run_task(c, &t.task))
+    // `farm::map` sends each task with its index in the list.
+    cluster.serve(threads, &|t: &crate::farm::Indexed<ReplicaTask>| {
+        run_task(c, &t.task)
+    })
 }
-
-// `Indexed` is what travels between ranks; named here so the link is visible.
-#[allow(dead_code)]
-type Travelling = Indexed<ReplicaTask>;

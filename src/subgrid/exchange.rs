@@ -130,6 +130,11 @@ pub struct CellOutput {
     /// Bodies per box at the start of the step.
     pub bodies: Stat,
     pub classes: Vec<ClassOutput>,
+    /// Source rate of the total number density [1/(m³ s)] (the cell's growth: minus
+    /// the bodies merges removed, plus the pieces fragmentations made); its standard
+    /// error is over the replicas' totals (the classes' rates are correlated, so theirs
+    /// do not add up to it).
+    pub number_rate: Stat,
     /// Granular temperature of all bodies at the end [m²/s²]: the mass-weighted
     /// variance of a velocity component about each body's class mean.
     pub granular_temperature: Stat,
@@ -231,6 +236,7 @@ impl CellOutput {
                 mean: c.present as f64,
                 se: 0.0,
             }),
+            scalar("total_number_rate", "1/(m^3 s)", self.number_rate),
             scalar("granular_temperature", "m^2/s^2", self.granular_temperature),
             Column {
                 name: "gas_momentum_rate",

@@ -182,6 +182,10 @@ pub fn combine(
         box_volume: volume,
         bodies: stat(replicas, |r| r.start.count.iter().sum::<u64>() as f64),
         classes,
+        number_rate: stat(replicas, |r| {
+            (r.end.count.iter().sum::<u64>() as f64 - r.start.count.iter().sum::<u64>() as f64)
+                * per
+        }),
         granular_temperature: stat(replicas, |r| {
             r.end.fluctuation.iter().sum::<f64>() / (3.0 * r.total_mass)
         }),
