@@ -592,3 +592,39 @@ fn bad_input_is_refused_naming_the_cell_and_the_field() {
         .to_string();
     assert!(e.contains("coupling: edges[2]"), "{e}");
 }
+
+#[test]
+fn a_target_standard_error_sizes_the_box() {
+    // φ = 0.01 monomers over 1e-4 s, 10 % wanted on the impact rate from K = 16
+    // boxes: the boxes should expect 1/0.1² = 100 impacts in all, so the measured
+    // relative SE of the impact rate (Poisson, independent impacts) comes out near
+    // 10 %. Allowed 6–16 %: the SE of 16 replicas is itself uncertain by about
+    // 1/√(2·15) = 18 %, so this is about ±2.5 of its own errors.
+    let mut c = coupling(1, 16);
+    c.bodies = BoxSize::TargetSe {
+        relative: 0.1,
+        min_bodies: 10,
+        max_bodies: 100_000,
+    };
+    let input = monomers(&c, 0.01, 1e-4);
+    let (out, _) = advance_cell(&c, 8, 0, &input, None).unwrap();
+    let n = input.classes[0].number_density;
+    let expected_impacts = expected_impact_density(&c, &input) * out.box_volume * 16.0;
+    assert!(
+        (expected_impacts - 100.0).abs() < 1.0,
+        "the box expects {expected_impacts} impacts, not 100"
+    );
+    assert!((out.bodies.mean - n * out.box_volume).abs() < 5.0 * out.bodies.mean.sqrt());
+    let relative = out.impact_rate.se / out.impact_rate.mean;
+    assert!(
+        (0.06..0.16).contains(&relative),
+        "relative SE {relative:.3} of the impact rate, wanted about 0.1"
+    );
+    // Clamped: a ceiling of 100 bodies wins over the target.
+    c.bodies = BoxSize::TargetSe {
+        relative: 0.1,
+        min_bodies: 10,
+        max_bodies: 100,
+    };
+    assert!((box_volume(&c, 8, &input).unwrap() * n - 100.0).abs() < 1e-9);
+}
