@@ -46,7 +46,8 @@ pub struct Coupling {
     pub replicas: u32,
     /// Keep each cell's bodies between macro steps (a closed cell, no transport):
     /// the first step lifts the input, later steps continue the same boxes and use
-    /// only the input's gas state and Δt. Otherwise every step lifts afresh.
+    /// only the input's gas state and Δt (its classes are still checked, not used).
+    /// Otherwise every step lifts afresh.
     pub keep_bodies: bool,
     /// Pool the kernel counts and exposure of the boxes into [`super::CellOutput::kernel`].
     pub kernel: bool,
