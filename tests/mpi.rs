@@ -347,7 +347,8 @@ fn a_failing_sample_is_reported_once_and_stops_every_rank() {
 }
 
 /// `agglo::subgrid`'s batch of 256 cells (issue 32): sticky grains at volume fractions
-/// 0.01–0.05, 60 bodies per box, one replica, Δt = 2e-4 s.
+/// 0.01–0.05, 60 bodies per box (`AGGLO_SUBGRID_BODIES` to measure with larger boxes),
+/// one replica, Δt = 2e-4 s.
 fn subgrid_batch() -> (
     agglo::subgrid::Coupling,
     Vec<(
@@ -366,7 +367,11 @@ fn subgrid_batch() -> (
     .unwrap();
     let m0 = 4.0 / 3.0 * std::f64::consts::PI * 2e-4f64.powi(3) * 1000.0;
     let mut c = Coupling::new(base, [0.5, 1.5, 2.5, 1e6].map(|x| x * m0).to_vec()).unwrap();
-    c.bodies = BoxSize::Bodies(60);
+    let bodies = std::env::var("AGGLO_SUBGRID_BODIES")
+        .ok()
+        .and_then(|b| b.parse().ok())
+        .unwrap_or(60);
+    c.bodies = BoxSize::Bodies(bodies);
     c.replicas = 1;
     let cells = (0..256u64)
         .map(|cell| {
