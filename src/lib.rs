@@ -41,6 +41,7 @@ pub mod restart;
 pub mod run;
 pub mod scenario;
 pub mod study;
+pub mod subgrid;
 pub mod validate;
 
 // The command line (src/cli.rs) names this crate `agglo`, as a program using it would.

@@ -345,3 +345,141 @@ fn a_failing_sample_is_reported_once_and_stops_every_rank() {
     assert!(stderr.contains("max_steps"), "{stderr}");
     assert!(start.elapsed() < Duration::from_secs(60));
 }
+
+/// `agglo::subgrid`'s batch of 256 cells (issue 32): sticky grains at volume fractions
+/// 0.01–0.05, 60 bodies per box (`AGGLO_SUBGRID_BODIES` to measure with larger boxes),
+/// one replica, Δt = 2e-4 s.
+fn subgrid_batch() -> (
+    agglo::subgrid::Coupling,
+    Vec<(
+        u64,
+        agglo::subgrid::CellInput,
+        Option<agglo::subgrid::CellState>,
+    )>,
+) {
+    use agglo::subgrid::*;
+    let base = agglo::scenario::Scenario::from_json(
+        r#"{ "name": "cells", "seed": 3, "box": { "half_width": 0.01 },
+             "cloud": { "count": 2, "radius": 2e-4, "v_rel": [0, 0, 0] },
+             "material": { "rho": 1000, "H0": 1e-6, "C": 1000, "theta0": 300 },
+             "impact": { "a0": 0.5, "af": 1.0, "beta": 1.0 }, "time": { "end": 1 } }"#,
+    )
+    .unwrap();
+    let m0 = 4.0 / 3.0 * std::f64::consts::PI * 2e-4f64.powi(3) * 1000.0;
+    let mut c = Coupling::new(base, [0.5, 1.5, 2.5, 1e6].map(|x| x * m0).to_vec()).unwrap();
+    let bodies = std::env::var("AGGLO_SUBGRID_BODIES")
+        .ok()
+        .and_then(|b| b.parse().ok())
+        .unwrap_or(60);
+    c.bodies = BoxSize::Bodies(bodies);
+    c.replicas = 1;
+    let cells = (0..256u64)
+        .map(|cell| {
+            let phi = 0.01 + 0.04 * (cell % 16) as f64 / 15.0;
+            let n = phi / (4.0 / 3.0 * std::f64::consts::PI * 2e-4f64.powi(3));
+            let class = |k: usize| ClassInput {
+                number_density: if k == 0 { n } else { 0.0 },
+                mass: m0 * (k + 1) as f64,
+                velocity: [0.1 * (cell / 16) as f64, 0.0, 0.0],
+                temperature: 300.0,
+                granular_temperature: 1.0,
+            };
+            let input = CellInput {
+                classes: (0..3).map(class).collect(),
+                gas: GasState {
+                    velocity: [0.0; 3],
+                    temperature: 300.0,
+                    drag: None,
+                },
+                dt: 2e-4,
+            };
+            (cell, input, None)
+        })
+        .collect();
+    (c, cells)
+}
+
+/// The batch's outputs and states, in cell order, as one byte string.
+fn subgrid_bytes(
+    results: Vec<
+        Result<
+            (agglo::subgrid::CellOutput, agglo::subgrid::CellState),
+            agglo::subgrid::SubgridError,
+        >,
+    >,
+) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    for r in results {
+        let (o, s) = r.unwrap();
+        bytes.extend(o.to_bytes());
+        bytes.extend(s.to_bytes());
+    }
+    bytes
+}
+
+/// Run by `mpirun` from the test below (and a no-op in a plain `cargo test`): rank 0
+/// advances the batch over every rank and writes its bytes to `AGGLO_SUBGRID_OUT`.
+#[test]
+fn subgrid_rank_program() {
+    let Ok(out) = std::env::var("AGGLO_SUBGRID_OUT") else {
+        return;
+    };
+    let cluster = agglo::farm::Cluster::init().expect("MPI initialises once");
+    let (c, cells) = subgrid_batch();
+    if cluster.is_root() {
+        let workers = agglo::farm::Workers {
+            threads: 1,
+            cluster: Some(&cluster),
+        };
+        let started = Instant::now();
+        let results = agglo::subgrid::advance_cells(&c, 0, &cells, &workers);
+        let seconds = started.elapsed().as_secs_f64();
+        std::fs::write(&out, subgrid_bytes(results)).unwrap();
+        std::fs::write(format!("{out}.seconds"), seconds.to_string()).unwrap();
+        cluster.stop(0);
+    } else {
+        let code = agglo::subgrid::serve(&c, &cluster, 1);
+        // MPI is finalised when the cluster is dropped, before the rank leaves.
+        drop(cluster);
+        assert_eq!(code, 0, "rank 0 stopped this rank with code {code}");
+    }
+}
+
+#[test]
+fn a_subgrid_batch_is_the_same_bytes_on_1_2_and_3_ranks() {
+    let dir = tempfile::tempdir().unwrap();
+    let (c, cells) = subgrid_batch();
+    let local = subgrid_bytes(agglo::subgrid::advance_cells(
+        &c,
+        0,
+        &cells,
+        &agglo::farm::Workers::local(1),
+    ));
+    let me = std::env::current_exe().unwrap();
+    for ranks in [1, 2, 3] {
+        let out = dir.path().join(format!("ranks{ranks}.bin"));
+        let status = Command::new("mpirun")
+            .args(["--oversubscribe", "-n", &ranks.to_string()])
+            .arg(&me)
+            .args([
+                "--exact",
+                "subgrid_rank_program",
+                "--test-threads=1",
+                "--quiet",
+            ])
+            .env("AGGLO_SUBGRID_OUT", &out)
+            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+            .output()
+            .unwrap();
+        check(status, &format!("the subgrid batch on {ranks} ranks"));
+        let bytes = std::fs::read(&out).unwrap();
+        let seconds = std::fs::read_to_string(dir.path().join(format!("ranks{ranks}.bin.seconds")))
+            .unwrap_or_default();
+        eprintln!("256 cells on {ranks} ranks: {seconds} s");
+        assert!(
+            bytes == local,
+            "{ranks} ranks wrote other bytes than one process"
+        );
+    }
+}

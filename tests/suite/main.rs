@@ -40,6 +40,7 @@ mod self_contained;
 mod signals;
 mod stepping;
 mod study;
+mod subgrid;
 mod unfinishable_runs;
 mod walls;
 mod worked_examples;

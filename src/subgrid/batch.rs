@@ -1,0 +1,219 @@
+//! Advancing cells: one ([`advance_cell`]) or a macro step's batch on the task farm
+//! ([`advance_cells`]: threads here, and every MPI rank under `mpirun`; [`serve`] on
+//! the ranks other than 0). Each (cell, replica) box is one task; the results are put
+//! together in cell and replica order, so they are the same bytes for any number of
+//! threads or ranks and any order of the cells in the batch.
+
+use serde::{Deserialize, Serialize};
+
+use crate::farm::Workers;
+use crate::kernel::Accumulator;
+
+use super::cell::{CellState, KeptBox, ReplicaRun, STATE_VERSION, run_replica};
+use super::config::Coupling;
+use super::error::SubgridError;
+use super::exchange::{CellInput, CellOutput};
+use super::lift::{box_volume, check_box, check_input};
+use super::restrict::combine;
+
+/// What a cell's step starts from, once its input and state are checked.
+struct Prepared {
+    volume: f64,
+    time: f64,
+    steps: u64,
+}
+
+/// Check `input` and `state` for `cell` and fix the box volume (a kept box's own).
+fn prepare(
+    c: &Coupling,
+    cell: u64,
+    input: &CellInput,
+    state: Option<&CellState>,
+) -> Result<Prepared, SubgridError> {
+    check_input(c, cell, input)?;
+    if let Some(s) = state {
+        s.check(c, cell)?;
+    }
+    let kept = state.filter(|s| c.keep_bodies && s.keeps_bodies());
+    let volume = match kept {
+        Some(s) => s.volume,
+        None => box_volume(c, cell, input)?,
+    };
+    if kept.is_none() {
+        check_box(c, cell, input, volume)?;
+    }
+    Ok(Prepared {
+        volume,
+        time: state.map_or(0.0, |s| s.time),
+        steps: state.map_or(0, |s| s.macro_steps),
+    })
+}
+
+/// The cell's output and new state from its replicas' runs (in replica order).
+fn finish(
+    c: &Coupling,
+    cell: u64,
+    macro_step: u64,
+    input: &CellInput,
+    prepared: &Prepared,
+    runs: Vec<ReplicaRun>,
+) -> Result<(CellOutput, CellState), SubgridError> {
+    let measured: Vec<_> = runs.iter().map(|r| r.measured.clone()).collect();
+    let mut output = combine(
+        c,
+        cell,
+        macro_step,
+        input.dt,
+        prepared.volume,
+        c.base.field.gravity,
+        &measured,
+    );
+    if c.kernel {
+        let mut pooled: Option<Accumulator> = None;
+        for run in &runs {
+            let Some(acc) = &run.kernel else { continue };
+            match &mut pooled {
+                None => pooled = Some(acc.clone()),
+                Some(p) => p.merge(acc).map_err(|e| SubgridError::Run {
+                    cell,
+                    replica: 0,
+                    reason: format!("pooling the kernel: {e}"),
+                })?,
+            }
+        }
+        output.kernel = pooled;
+    }
+    let boxes: Vec<KeptBox> = runs.into_iter().filter_map(|r| r.kept).collect();
+    let state = CellState {
+        version: STATE_VERSION,
+        cell,
+        macro_steps: prepared.steps + 1,
+        time: prepared.time + input.dt,
+        volume: prepared.volume,
+        boxes,
+    };
+    Ok((output, state))
+}
+
+/// Advance one cell over `input.dt`: K replica boxes, lifted from `input` (or, with
+/// `keep_bodies` and a state, continued), run one after the other on this thread.
+/// `macro_step` (any number the caller counts steps by) and `cell` seed the boxes with
+/// the base seed ([`super::replica_seed`]). The same bytes as the cell's entry of
+/// [`advance_cells`].
+pub fn advance_cell(
+    c: &Coupling,
+    cell: u64,
+    macro_step: u64,
+    input: &CellInput,
+    state: Option<&CellState>,
+) -> Result<(CellOutput, CellState), SubgridError> {
+    c.check()?;
+    let prepared = prepare(c, cell, input, state)?;
+    let runs = (0..c.replicas)
+        .map(|r| {
+            let kept = kept_box(c, state, r);
+            run_replica(c, cell, macro_step, r, input, prepared.volume, kept)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    finish(c, cell, macro_step, input, &prepared, runs)
+}
+
+fn kept_box<'a>(c: &Coupling, state: Option<&'a CellState>, replica: u32) -> Option<&'a KeptBox> {
+    state
+        .filter(|_| c.keep_bodies)
+        .and_then(|s| s.boxes.get(replica as usize))
+}
+
+/// One box of a batch: what a worker (a thread, or another rank) needs to run it.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ReplicaTask {
+    pub cell: u64,
+    pub macro_step: u64,
+    pub replica: u32,
+    pub input: CellInput,
+    pub volume: f64,
+    pub kept: Option<KeptBox>,
+}
+
+/// The work of one task (the same function on every thread and rank).
+pub fn run_task(c: &Coupling, t: &ReplicaTask) -> Result<ReplicaRun, SubgridError> {
+    run_replica(
+        c,
+        t.cell,
+        t.macro_step,
+        t.replica,
+        &t.input,
+        t.volume,
+        t.kept.as_ref(),
+    )
+}
+
+/// Advance a macro step's cells — (cell id, input, state or `None`) each — as
+/// independent tasks on `workers`, one per (cell, replica). Results in the order of
+/// `cells`, each as [`advance_cell`] would give it: a cell's bad input is that cell's
+/// error and does not stop the others. A failure of the farm itself (a worker that
+/// panicked, MPI) is every cell's error.
+pub fn advance_cells(
+    c: &Coupling,
+    macro_step: u64,
+    cells: &[(u64, CellInput, Option<CellState>)],
+    workers: &Workers,
+) -> Vec<Result<(CellOutput, CellState), SubgridError>> {
+    if let Err(e) = c.check() {
+        return cells.iter().map(|_| Err(e.clone())).collect();
+    }
+    let prepared: Vec<Result<Prepared, SubgridError>> = cells
+        .iter()
+        .map(|(cell, input, state)| prepare(c, *cell, input, state.as_ref()))
+        .collect();
+    let mut tasks = Vec::new();
+    for ((cell, input, state), p) in cells.iter().zip(&prepared) {
+        let Ok(p) = p else { continue };
+        for r in 0..c.replicas {
+            tasks.push(ReplicaTask {
+                cell: *cell,
+                macro_step,
+                replica: r,
+                input: input.clone(),
+                volume: p.volume,
+                kept: kept_box(c, state.as_ref(), r).cloned(),
+            });
+        }
+    }
+    let work = |t: &ReplicaTask| run_task(c, t);
+    let results = match crate::farm::map(workers, tasks, &work) {
+        Ok(r) => r,
+        Err(e) => {
+            return cells
+                .iter()
+                .map(|(cell, ..)| {
+                    Err(SubgridError::Farm {
+                        cell: *cell,
+                        reason: e.to_string(),
+                    })
+                })
+                .collect();
+        }
+    };
+    let mut results = results.into_iter();
+    cells
+        .iter()
+        .zip(prepared)
+        .map(|((cell, input, _), p)| {
+            let p = p?;
+            let runs: Vec<_> = results.by_ref().take(c.replicas as usize).collect();
+            let runs = runs.into_iter().collect::<Result<Vec<_>, _>>()?;
+            finish(c, *cell, macro_step, input, &p, runs)
+        })
+        .collect()
+}
+
+/// On MPI ranks other than 0: run the boxes rank 0's [`advance_cells`] hands out, until
+/// it stops the cluster; returns the exit code. Every rank must hold the same coupling.
+#[cfg(feature = "mpi")]
+pub fn serve(c: &Coupling, cluster: &crate::farm::Cluster, threads: usize) -> i32 {
+    // `farm::map` sends each task with its index in the list.
+    cluster.serve(threads, &|t: &crate::farm::Indexed<ReplicaTask>| {
+        run_task(c, &t.task)
+    })
+}

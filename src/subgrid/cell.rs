@@ -1,0 +1,212 @@
+//! One cell: its state between macro steps ([`CellState`], the `get_state`/`set_state`
+//! of a per-cell coupling library) and one replica box advanced over a macro step
+//! ([`run_replica`]).
+
+use std::ops::ControlFlow;
+
+use serde::{Deserialize, Serialize};
+
+use crate::kernel::{Accumulator, Sampling, Window};
+use crate::scenario::Scenario;
+use agglo_engine::restart::RestartSnapshot;
+
+use super::config::Coupling;
+use super::error::SubgridError;
+use super::exchange::CellInput;
+use super::lift::{gas_field, lift, replica_seed};
+use super::restrict::{ClassSums, Replica};
+
+/// Layout version of [`CellState::to_bytes`]; bumped when it changes.
+pub const STATE_VERSION: u32 = 1;
+
+/// A kept box between macro steps: the scene it was lifted as and the restart
+/// snapshot at the end of the last step (engine/restart.rs), from which the next step
+/// continues bit for bit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct KeptBox {
+    /// The lifted scenario, as JSON (its sections skip defaults, which a compact
+    /// encoding cannot carry).
+    pub scenario: String,
+    /// [`RestartSnapshot::encode`]'s bytes.
+    pub snapshot: Vec<u8>,
+}
+
+/// What a cell carries from one macro step to the next. Opaque to the flow solver:
+/// store it with [`CellState::to_bytes`] and give it back (decoded with
+/// [`CellState::from_bytes`]) with the cell's next step — or give `None` to start the
+/// cell afresh. Without `keep_bodies` it holds only the cell's clock; with it, every
+/// replica's bodies.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellState {
+    pub(crate) version: u32,
+    pub(crate) cell: u64,
+    pub(crate) macro_steps: u64,
+    pub(crate) time: f64,
+    pub(crate) volume: f64,
+    pub(crate) boxes: Vec<KeptBox>,
+}
+
+impl CellState {
+    /// The cell this state belongs to.
+    pub fn cell(&self) -> u64 {
+        self.cell
+    }
+    /// Macro steps the cell has taken.
+    pub fn macro_steps(&self) -> u64 {
+        self.macro_steps
+    }
+    /// The cell's simulated time [s] (the sum of its steps' Δt).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+    /// Volume of each of its boxes [m³] (kept boxes keep theirs).
+    pub fn box_volume(&self) -> f64 {
+        self.volume
+    }
+    /// The kept boxes, one per replica (empty without `keep_bodies`).
+    pub fn boxes(&self) -> &[KeptBox] {
+        &self.boxes
+    }
+    /// True when the state holds bodies (a closed cell).
+    pub fn keeps_bodies(&self) -> bool {
+        !self.boxes.is_empty()
+    }
+
+    /// The state as bytes (postcard: every f64 as its 8 bytes).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        postcard::to_allocvec(self).expect("a cell state always encodes")
+    }
+
+    /// A state from [`Self::to_bytes`]'s bytes; refuses another layout version.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, String> {
+        let s: Self = postcard::from_bytes(bytes)
+            .map_err(|e| format!("the cell state does not decode ({e})"))?;
+        if s.version != STATE_VERSION {
+            return Err(format!(
+                "the cell state has layout version {}, this build reads version {STATE_VERSION}",
+                s.version
+            ));
+        }
+        Ok(s)
+    }
+
+    /// Check that this state can continue `cell` under `c`.
+    pub(crate) fn check(&self, c: &Coupling, cell: u64) -> Result<(), SubgridError> {
+        let bad = |reason: String| Err(SubgridError::State { cell, reason });
+        if self.cell != cell {
+            return bad(format!("it is cell {}'s state", self.cell));
+        }
+        if c.keep_bodies && self.boxes.len() != c.replicas as usize {
+            return bad(format!(
+                "it holds {} boxes; the coupling keeps {} replicas' bodies",
+                self.boxes.len(),
+                c.replicas
+            ));
+        }
+        if !(self.time.is_finite() && self.time >= 0.0) {
+            return bad(format!("time {:e} s", self.time));
+        }
+        Ok(())
+    }
+}
+
+/// One replica's result: what it measured, its kernel sums, its kept box.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ReplicaRun {
+    pub measured: Replica,
+    pub kernel: Option<Accumulator>,
+    pub kept: Option<KeptBox>,
+}
+
+/// Advance replica `replica` of `cell` over `input.dt`: lift a new box of `volume`
+/// [m³] (seeded by [`replica_seed`]), or continue `kept`.
+pub fn run_replica(
+    c: &Coupling,
+    cell: u64,
+    macro_step: u64,
+    replica: u32,
+    input: &CellInput,
+    volume: f64,
+    kept: Option<&KeptBox>,
+) -> Result<ReplicaRun, SubgridError> {
+    let fail = |reason: String| SubgridError::Run {
+        cell,
+        replica,
+        reason,
+    };
+    let (scenario, snapshot) = match kept {
+        None => {
+            let seed = replica_seed(c.base.seed, cell, macro_step, replica);
+            let s = lift(c, cell, input, volume, seed).map_err(|e| match e {
+                SubgridError::Run { reason, .. } => fail(reason),
+                other => other,
+            })?;
+            (s, None)
+        }
+        Some(kept) => {
+            let mut s = Scenario::from_json(&kept.scenario).map_err(|e| SubgridError::State {
+                cell,
+                reason: format!("replica {replica}: the kept scene does not read: {e}"),
+            })?;
+            let snapshot =
+                RestartSnapshot::decode(&kept.snapshot).map_err(|e| SubgridError::State {
+                    cell,
+                    reason: format!("replica {replica}: {e}"),
+                })?;
+            // The gas of this step; the box's clock runs on from the snapshot's time.
+            s.material.theta0 = input.gas.temperature;
+            s.field = gas_field(c, input);
+            s.time.end = snapshot.time() + input.dt;
+            (s, Some(snapshot))
+        }
+    };
+    let mut sim = crate::kernel::simulation(&scenario).map_err(|e| fail(e.to_string()))?;
+    if let Some(snapshot) = &snapshot {
+        sim.resume(snapshot).map_err(|e| fail(e.to_string()))?;
+    }
+    let start = ClassSums::of(c, &sim.bodies());
+    let (ledger0, counters0) = (sim.ledger(), sim.counters());
+    let kernel = if c.kernel {
+        let mut acc = Accumulator::new(c.kernel_grid(), Window::default(), Sampling::default());
+        acc.begin(&sim).map_err(|e| fail(e.to_string()))?;
+        let mut failed = None;
+        let outcome = sim.run_with(|s| match acc.observe(s) {
+            Ok(()) => ControlFlow::Continue(()),
+            Err(e) => {
+                failed = Some(e);
+                ControlFlow::Break(())
+            }
+        });
+        if let Some(e) = failed {
+            return Err(fail(format!("kernel: {e}")));
+        }
+        outcome.map_err(|e| fail(e.to_string()))?;
+        acc.end_run(&sim).map_err(|e| fail(e.to_string()))?;
+        Some(acc)
+    } else {
+        sim.run().map_err(|e| fail(e.to_string()))?;
+        None
+    };
+    let end = ClassSums::of(c, &sim.bodies());
+    let measured = Replica::new(
+        start,
+        end,
+        &ledger0,
+        &sim.ledger(),
+        &counters0,
+        &sim.counters(),
+    );
+    let kept = c.keep_bodies.then(|| {
+        // The run is complete: every body is at the end time (Simulation::run_until).
+        let snapshot = agglo_engine::restart::capture(sim.world_mut());
+        KeptBox {
+            scenario: scenario.to_json(),
+            snapshot: snapshot.encode(),
+        }
+    });
+    Ok(ReplicaRun {
+        measured,
+        kernel,
+        kept,
+    })
+}

@@ -1,0 +1,304 @@
+//! What crosses between a flow solver's cell and its boxes (docs/model.md §15): the
+//! macro state handed in ([`CellInput`]: size classes, gas state, Δt) and the
+//! homogenized figures handed back ([`CellOutput`]: source rates per class, the new
+//! class states, what the gas received, event rates), each as the mean over the K
+//! replica boxes with its standard error ([`Stat`]).
+//!
+//! Plain `f64`s and vectors in SI units, so that the C and Python fronts can hand them
+//! over as arrays. Densities and rates are per unit volume of the cell [1/m³, kg/m³,
+//! …]; a rate is the change over the macro step divided by Δt.
+
+use serde::{Deserialize, Serialize};
+
+use crate::kernel::Accumulator;
+use agglo_engine::field::Relaxation;
+
+/// One size class of the cell, as the flow solver holds it (macro → micro).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ClassInput {
+    /// Bodies per unit volume n_k [1/m³], ≥ 0.
+    pub number_density: f64,
+    /// The class's representative body mass m_k [kg], inside the class's edges and at
+    /// least the primary grain's mass; its radius is (3 m_k / 4πρ)^(1/3).
+    pub mass: f64,
+    /// Mean velocity of the class [m/s].
+    pub velocity: [f64; 3],
+    /// Temperature θ_k of the class's bodies [K], > 0.
+    pub temperature: f64,
+    /// Granular temperature T_k [m²/s²], ≥ 0: the variance of each velocity component
+    /// about the class mean (Maxwellian fluctuations are drawn with it).
+    pub granular_temperature: f64,
+}
+
+/// The gas the boxes' bodies fly through (uniform over the cell and the macro step).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GasState {
+    /// Gas velocity u [m/s] (the drag pulls bodies toward it).
+    pub velocity: [f64; 3],
+    /// Gas temperature [K], > 0: the ambient θ0 of convective cooling (docs/model.md
+    /// §8); it replaces the base scenario's `material.theta0`.
+    pub temperature: f64,
+    /// How a body's drag relaxation time follows from the gas: Stokes (viscosity μ),
+    /// Epstein (gas density ρ_g and mean thermal speed v_th) or a constant τ. `None`:
+    /// no drag (the bodies do not feel the gas velocity).
+    pub drag: Option<Relaxation>,
+}
+
+/// A cell's macro state for one macro step (macro → micro).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellInput {
+    /// One entry per class of the coupling's grid ([`super::Coupling::edges`]).
+    pub classes: Vec<ClassInput>,
+    pub gas: GasState,
+    /// The macro time step Δt [s], > 0.
+    pub dt: f64,
+}
+
+/// An ensemble figure: the mean over the replicas that define it, and the standard
+/// error of that mean, s/√K (s the sample standard deviation over those replicas).
+/// With a single replica the standard error is NaN (it cannot be estimated).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Stat {
+    pub mean: f64,
+    pub se: f64,
+}
+
+impl Stat {
+    /// Mean and standard error of `values` (summed in order: the same bits for the
+    /// same values). Empty: mean 0, se NaN.
+    pub fn of(values: &[f64]) -> Self {
+        let k = values.len();
+        if k == 0 {
+            return Self {
+                mean: 0.0,
+                se: f64::NAN,
+            };
+        }
+        let mean = values.iter().sum::<f64>() / k as f64;
+        if k == 1 {
+            return Self { mean, se: f64::NAN };
+        }
+        let var = values.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (k - 1) as f64;
+        Self {
+            mean,
+            se: (var / k as f64).sqrt(),
+        }
+    }
+}
+
+/// One class after the macro step (micro → macro). Rates are (end − start)/(V Δt) in
+/// each box of volume V, averaged over the replicas; the class states at the end are
+/// averaged over the replicas in which the class holds bodies at the end (`present`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClassOutput {
+    /// Source rate of number density [1/(m³ s)].
+    pub number_rate: Stat,
+    /// Source rate of mass density [kg/(m³ s)]; over all classes they sum to zero
+    /// (mass moves between classes, none is made or lost) to rounding.
+    pub mass_rate: Stat,
+    /// Source rate of momentum density [N/m³]: what collisions moved between classes
+    /// plus what the drag and g gave the class's bodies.
+    pub momentum_rate: [Stat; 3],
+    /// Number density at the end of the step [1/m³].
+    pub number_density: Stat,
+    /// Mass density at the end of the step [kg/m³].
+    pub mass_density: Stat,
+    /// Mass-weighted mean velocity of the class's bodies at the end [m/s].
+    pub velocity: [Stat; 3],
+    /// Mass-weighted mean temperature of the class's bodies at the end [K].
+    pub temperature: Stat,
+    /// Granular temperature at the end [m²/s²]: the mass-weighted variance of a
+    /// velocity component about the class's mean velocity.
+    pub granular_temperature: Stat,
+    /// Replicas in which the class holds bodies at the end (the states above are means
+    /// over these; with 0 they are 0 and their standard errors NaN).
+    pub present: u32,
+}
+
+/// What a cell hands back after a macro step (micro → macro); see [`ClassOutput`] for
+/// the per-class figures. Every figure is per unit volume of the cell.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CellOutput {
+    pub cell: u64,
+    pub macro_step: u64,
+    /// Δt [s] of the step.
+    pub dt: f64,
+    /// Replica boxes K the figures are averaged over.
+    pub replicas: u32,
+    /// Volume of each box [m³].
+    pub box_volume: f64,
+    /// Bodies per box at the start of the step.
+    pub bodies: Stat,
+    pub classes: Vec<ClassOutput>,
+    /// Source rate of the total number density [1/(m³ s)] (the cell's growth: minus
+    /// the bodies merges removed, plus the pieces fragmentations made); its standard
+    /// error is over the replicas' totals (the classes' rates are correlated, so theirs
+    /// do not add up to it).
+    pub number_rate: Stat,
+    /// Granular temperature of all bodies at the end [m²/s²]: the mass-weighted
+    /// variance of a velocity component about each body's class mean.
+    pub granular_temperature: Stat,
+    /// Momentum the gas received from the bodies through drag [N/m³]: minus the drag's
+    /// impulse on them (the field's impulse less M g Δt).
+    pub gas_momentum_rate: [Stat; 3],
+    /// Work the field (drag and g) did on the bodies [W/m³].
+    pub force_work_rate: Stat,
+    /// Heat the bodies gave off by cooling (convection to the gas and radiation, §8)
+    /// [W/m³].
+    pub heat_loss_rate: Stat,
+    /// Heat released by reactions at bonds [W/m³].
+    pub reaction_heat_rate: Stat,
+    /// Kinetic energy impacts turned into heat [W/m³].
+    pub dissipation_rate: Stat,
+    /// Energy taken by fracture [W/m³].
+    pub fracture_energy_rate: Stat,
+    /// Impacts, bonds, bounces and fragmentations per unit volume and time [1/(m³ s)].
+    pub impact_rate: Stat,
+    pub bond_rate: Stat,
+    pub bounce_rate: Stat,
+    pub fragment_rate: Stat,
+    /// With [`super::Coupling::kernel`]: the per-pair impact counts and exposure of
+    /// `agglo kernel` on the coupling's classes, pooled over the replicas (replica
+    /// order); [`crate::kernel::Estimate::of`] turns them into the kernel.
+    pub kernel: Option<Accumulator>,
+}
+
+impl CellOutput {
+    /// The output as bytes (postcard: every f64 as its 8 bytes), for storage and for
+    /// comparing outputs bit for bit.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        postcard::to_allocvec(self).expect("an output always encodes")
+    }
+
+    /// An output from [`Self::to_bytes`].
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, String> {
+        postcard::from_bytes(bytes).map_err(|e| format!("the output does not decode ({e})"))
+    }
+}
+
+/// One figure of a [`CellOutput`] as flat arrays, for the C and Python fronts:
+/// `mean` and `se` hold `shape`'s product of values, row-major (class first, then
+/// the axis for per-class vectors).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Column {
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub shape: Vec<usize>,
+    pub mean: Vec<f64>,
+    pub se: Vec<f64>,
+}
+
+impl CellOutput {
+    /// Every figure as a named column, in a fixed order (the per-class ones first).
+    pub fn columns(&self) -> Vec<Column> {
+        let k = self.classes.len();
+        let per_class = |name, unit, f: fn(&ClassOutput) -> Stat| Column {
+            name,
+            unit,
+            shape: vec![k],
+            mean: self.classes.iter().map(|c| f(c).mean).collect(),
+            se: self.classes.iter().map(|c| f(c).se).collect(),
+        };
+        let per_class3 = |name, unit, f: fn(&ClassOutput) -> [Stat; 3]| Column {
+            name,
+            unit,
+            shape: vec![k, 3],
+            mean: self
+                .classes
+                .iter()
+                .flat_map(|c| f(c).map(|s| s.mean))
+                .collect(),
+            se: self
+                .classes
+                .iter()
+                .flat_map(|c| f(c).map(|s| s.se))
+                .collect(),
+        };
+        let scalar = |name, unit, s: Stat| Column {
+            name,
+            unit,
+            shape: vec![1],
+            mean: vec![s.mean],
+            se: vec![s.se],
+        };
+        vec![
+            per_class("number_rate", "1/(m^3 s)", |c| c.number_rate),
+            per_class("mass_rate", "kg/(m^3 s)", |c| c.mass_rate),
+            per_class3("momentum_rate", "N/m^3", |c| c.momentum_rate),
+            per_class("number_density", "1/m^3", |c| c.number_density),
+            per_class("mass_density", "kg/m^3", |c| c.mass_density),
+            per_class3("velocity", "m/s", |c| c.velocity),
+            per_class("temperature", "K", |c| c.temperature),
+            per_class("class_granular_temperature", "m^2/s^2", |c| {
+                c.granular_temperature
+            }),
+            per_class("present", "replicas", |c| Stat {
+                mean: c.present as f64,
+                se: 0.0,
+            }),
+            scalar("total_number_rate", "1/(m^3 s)", self.number_rate),
+            scalar("granular_temperature", "m^2/s^2", self.granular_temperature),
+            Column {
+                name: "gas_momentum_rate",
+                unit: "N/m^3",
+                shape: vec![3],
+                mean: self.gas_momentum_rate.map(|s| s.mean).to_vec(),
+                se: self.gas_momentum_rate.map(|s| s.se).to_vec(),
+            },
+            scalar("force_work_rate", "W/m^3", self.force_work_rate),
+            scalar("heat_loss_rate", "W/m^3", self.heat_loss_rate),
+            scalar("reaction_heat_rate", "W/m^3", self.reaction_heat_rate),
+            scalar("dissipation_rate", "W/m^3", self.dissipation_rate),
+            scalar("fracture_energy_rate", "W/m^3", self.fracture_energy_rate),
+            scalar("impact_rate", "1/(m^3 s)", self.impact_rate),
+            scalar("bond_rate", "1/(m^3 s)", self.bond_rate),
+            scalar("bounce_rate", "1/(m^3 s)", self.bounce_rate),
+            scalar("fragment_rate", "1/(m^3 s)", self.fragment_rate),
+            scalar("bodies", "bodies per box", self.bodies),
+        ]
+    }
+}
+
+impl CellInput {
+    /// An input from flat arrays of one value per class (`velocity`: 3 per class,
+    /// row-major), as the C and Python fronts hold them. Lengths are checked, values
+    /// are checked when the cell advances ([`super::check_input`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_columns(
+        cell: u64,
+        number_density: &[f64],
+        mass: &[f64],
+        velocity: &[f64],
+        temperature: &[f64],
+        granular_temperature: &[f64],
+        gas: GasState,
+        dt: f64,
+    ) -> Result<Self, super::SubgridError> {
+        let k = number_density.len();
+        for (name, len, want) in [
+            ("mass", mass.len(), k),
+            ("velocity", velocity.len(), 3 * k),
+            ("temperature", temperature.len(), k),
+            ("granular_temperature", granular_temperature.len(), k),
+        ] {
+            if len != want {
+                return Err(super::SubgridError::input(
+                    cell,
+                    name,
+                    format!("{len} values"),
+                    format!("must be {want} (number_density has {k} classes)"),
+                ));
+            }
+        }
+        let classes = (0..k)
+            .map(|i| ClassInput {
+                number_density: number_density[i],
+                mass: mass[i],
+                velocity: [velocity[3 * i], velocity[3 * i + 1], velocity[3 * i + 2]],
+                temperature: temperature[i],
+                granular_temperature: granular_temperature[i],
+            })
+            .collect();
+        Ok(Self { classes, gas, dt })
+    }
+}

@@ -1,0 +1,210 @@
+//! Restriction (docs/model.md §15): from a box's bodies back to the cell's classes —
+//! bodies binned by mass on the coupling's edges, summed per class ([`ClassSums`]); a
+//! replica's change over the step ([`Replica`]); the K replicas' means and standard
+//! errors ([`combine`]).
+//!
+//! Sums run over the bodies in id order, so they depend on nothing but the bodies.
+
+use serde::{Deserialize, Serialize};
+
+use crate::components::BodyState;
+use crate::resources::{Counters, EnergyLedger};
+
+use super::config::Coupling;
+use super::exchange::{CellOutput, ClassOutput, Stat};
+
+/// Per-class sums over a box's bodies.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct ClassSums {
+    pub count: Vec<u64>,
+    /// Σ m [kg].
+    pub mass: Vec<f64>,
+    /// Σ m v [kg m/s].
+    pub momentum: Vec<[f64; 3]>,
+    /// Σ m θ [kg K].
+    pub mass_temperature: Vec<f64>,
+    /// Σ m |v − ū_k|² about the class's mass-weighted mean [kg m²/s²].
+    pub fluctuation: Vec<f64>,
+}
+
+impl ClassSums {
+    /// Bin `bodies` on the classes of `c`.
+    pub fn of(c: &Coupling, bodies: &[BodyState]) -> Self {
+        let k = c.classes();
+        let mut s = Self {
+            count: vec![0; k],
+            mass: vec![0.0; k],
+            momentum: vec![[0.0; 3]; k],
+            mass_temperature: vec![0.0; k],
+            fluctuation: vec![0.0; k],
+        };
+        let mut sorted: Vec<&BodyState> = bodies.iter().collect();
+        sorted.sort_by_key(|b| b.id);
+        let classes: Vec<usize> = sorted.iter().map(|b| c.class_of(b.mass)).collect();
+        for (b, &k) in sorted.iter().zip(&classes) {
+            s.count[k] += 1;
+            s.mass[k] += b.mass;
+            let p = b.velocity * b.mass;
+            for x in 0..3 {
+                s.momentum[k][x] += p[x];
+            }
+            s.mass_temperature[k] += b.mass * b.temperature;
+        }
+        // Second pass about the class means (no cancellation of large means).
+        for (b, &k) in sorted.iter().zip(&classes) {
+            let mean = s.momentum[k].map(|p| p / s.mass[k]);
+            let d2: f64 = (0..3).map(|x| (b.velocity[x] - mean[x]).powi(2)).sum();
+            s.fluctuation[k] += b.mass * d2;
+        }
+        s
+    }
+}
+
+/// What one replica box measured over the step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Replica {
+    pub start: ClassSums,
+    pub end: ClassSums,
+    /// Ledger at the end less the ledger at the start.
+    pub ledger: EnergyLedger,
+    /// Impacts, bonds, bounces, fragmentations over the step.
+    pub events: [u64; 4],
+    /// Σ m over the box [kg] (constant).
+    pub total_mass: f64,
+}
+
+impl Replica {
+    /// The change between two ledgers and two counter sets.
+    pub fn new(
+        start: ClassSums,
+        end: ClassSums,
+        ledger0: &EnergyLedger,
+        ledger1: &EnergyLedger,
+        counters0: &Counters,
+        counters1: &Counters,
+    ) -> Self {
+        let mut ledger = *ledger1;
+        ledger.reaction_heat -= ledger0.reaction_heat;
+        ledger.fracture_energy -= ledger0.fracture_energy;
+        ledger.cooling_loss -= ledger0.cooling_loss;
+        ledger.impact_dissipation -= ledger0.impact_dissipation;
+        ledger.force_work -= ledger0.force_work;
+        ledger.force_work_turnover -= ledger0.force_work_turnover;
+        ledger.external_heat -= ledger0.external_heat;
+        for x in 0..3 {
+            ledger.force_impulse[x] -= ledger0.force_impulse[x];
+        }
+        ledger.force_impulse_turnover -= ledger0.force_impulse_turnover;
+        ledger.double_counted_heat -= ledger0.double_counted_heat;
+        let events = [
+            counters1.impacts - counters0.impacts,
+            counters1.bonds - counters0.bonds,
+            counters1.bounces - counters0.bounces,
+            counters1.fragmentations - counters0.fragmentations,
+        ];
+        let total_mass = start.mass.iter().sum();
+        Self {
+            start,
+            end,
+            ledger,
+            events,
+            total_mass,
+        }
+    }
+}
+
+/// Figures over replicas: collect one value per replica, then [`Stat::of`].
+fn stat(replicas: &[Replica], f: impl Fn(&Replica) -> f64) -> Stat {
+    Stat::of(&replicas.iter().map(f).collect::<Vec<_>>())
+}
+
+/// Over the replicas where `keep` holds.
+fn stat_where(
+    replicas: &[Replica],
+    keep: impl Fn(&Replica) -> bool,
+    f: impl Fn(&Replica) -> f64,
+) -> Stat {
+    Stat::of(
+        &replicas
+            .iter()
+            .filter(|r| keep(r))
+            .map(f)
+            .collect::<Vec<_>>(),
+    )
+}
+
+/// The cell's output from its replicas (in replica order), each a box of `volume`
+/// [m³] run over `dt` [s] in gravity `g` [m/s²].
+pub fn combine(
+    c: &Coupling,
+    cell: u64,
+    macro_step: u64,
+    dt: f64,
+    volume: f64,
+    g: [f64; 3],
+    replicas: &[Replica],
+) -> CellOutput {
+    let per = 1.0 / (volume * dt);
+    let classes = (0..c.classes())
+        .map(|k| {
+            let present = |r: &Replica| r.end.count[k] > 0;
+            let end_mass = |r: &Replica| r.end.mass[k];
+            ClassOutput {
+                number_rate: stat(replicas, |r| {
+                    (r.end.count[k] as f64 - r.start.count[k] as f64) * per
+                }),
+                mass_rate: stat(replicas, |r| (r.end.mass[k] - r.start.mass[k]) * per),
+                momentum_rate: [0, 1, 2].map(|x| {
+                    stat(replicas, |r| {
+                        (r.end.momentum[k][x] - r.start.momentum[k][x]) * per
+                    })
+                }),
+                number_density: stat(replicas, |r| r.end.count[k] as f64 / volume),
+                mass_density: stat(replicas, |r| r.end.mass[k] / volume),
+                velocity: [0, 1, 2]
+                    .map(|x| stat_where(replicas, present, |r| r.end.momentum[k][x] / end_mass(r))),
+                temperature: stat_where(replicas, present, |r| {
+                    r.end.mass_temperature[k] / end_mass(r)
+                }),
+                granular_temperature: stat_where(replicas, present, |r| {
+                    r.end.fluctuation[k] / (3.0 * end_mass(r))
+                }),
+                present: replicas.iter().filter(|r| present(r)).count() as u32,
+            }
+        })
+        .collect();
+    let ledger_rate = |f: fn(&EnergyLedger) -> f64| stat(replicas, |r| f(&r.ledger) * per);
+    CellOutput {
+        cell,
+        macro_step,
+        dt,
+        replicas: replicas.len() as u32,
+        box_volume: volume,
+        bodies: stat(replicas, |r| r.start.count.iter().sum::<u64>() as f64),
+        classes,
+        number_rate: stat(replicas, |r| {
+            (r.end.count.iter().sum::<u64>() as f64 - r.start.count.iter().sum::<u64>() as f64)
+                * per
+        }),
+        granular_temperature: stat(replicas, |r| {
+            r.end.fluctuation.iter().sum::<f64>() / (3.0 * r.total_mass)
+        }),
+        // The field's impulse is g's (M g Δt, mass being constant) plus the drag's; the
+        // gas receives minus the drag's.
+        gas_momentum_rate: [0, 1, 2].map(|x| {
+            stat(replicas, |r| {
+                -(r.ledger.force_impulse[x] - r.total_mass * g[x] * dt) * per
+            })
+        }),
+        force_work_rate: ledger_rate(|l| l.force_work),
+        heat_loss_rate: ledger_rate(|l| l.cooling_loss),
+        reaction_heat_rate: ledger_rate(|l| l.reaction_heat),
+        dissipation_rate: ledger_rate(|l| l.impact_dissipation),
+        fracture_energy_rate: ledger_rate(|l| l.fracture_energy),
+        impact_rate: stat(replicas, |r| r.events[0] as f64 * per),
+        bond_rate: stat(replicas, |r| r.events[1] as f64 * per),
+        bounce_rate: stat(replicas, |r| r.events[2] as f64 * per),
+        fragment_rate: stat(replicas, |r| r.events[3] as f64 * per),
+        kernel: None,
+    }
+}
