@@ -20,6 +20,7 @@ from .scenario import Scenario, ValidationReport
 from .simulation import Carry, Simulation
 from .table import Table
 from .ensemble import Ensemble, ensemble
+from . import subgrid
 
 __all__ = [
     "AggloError",
@@ -31,5 +32,6 @@ __all__ = [
     "Table",
     "ValidationReport",
     "ensemble",
+    "subgrid",
     "__version__",
 ]

@@ -71,3 +71,52 @@ def ensemble(
     scenario: Scenario, seeds: Sequence[int], threads: int = 0, tables: Sequence[str] = ...
 ) -> List[Tuple[str, Dict[str, Dict[str, object]]]]: ...
 def table_units(table: str) -> Dict[str, str]: ...
+
+class CellState:
+    """A subgrid cell's state between macro steps (opaque, picklable)."""
+    def to_bytes(self) -> bytes: ...
+    @staticmethod
+    def from_bytes(bytes: bytes) -> "CellState": ...
+    @property
+    def cell(self) -> int: ...
+    @property
+    def macro_steps(self) -> int: ...
+
+class Coupling:
+    """agglo::subgrid's settings; wrapped by agglo.subgrid.Coupling."""
+    def __init__(
+        self,
+        scenario: Scenario,
+        edges: Sequence[float],
+        bodies: Optional[int] = 1000,
+        replicas: int = 4,
+        keep_bodies: bool = False,
+        kernel: bool = False,
+        target_se: float = 0.05,
+        min_bodies: int = 100,
+        max_bodies: int = 100000,
+    ) -> None: ...
+    @property
+    def classes(self) -> int: ...
+    @property
+    def edges(self) -> List[float]: ...
+    @property
+    def primary(self) -> Tuple[float, float]: ...
+    @property
+    def replicas(self) -> int: ...
+    def advance_cells(
+        self,
+        macro_step: int,
+        cells: Sequence[int],
+        number_density: npt.NDArray,
+        mass: npt.NDArray,
+        velocity: npt.NDArray,
+        temperature: npt.NDArray,
+        granular_temperature: npt.NDArray,
+        dt: npt.NDArray,
+        gas_velocity: npt.NDArray,
+        gas_temperature: npt.NDArray,
+        drag: Optional[str] = None,
+        states: Optional[Sequence[Optional[CellState]]] = None,
+        threads: int = 0,
+    ) -> Tuple[List[Dict[str, object]], List[CellState]]: ...

@@ -14,6 +14,7 @@ mod hooks;
 mod kernel;
 mod scenario;
 mod simulation;
+mod subgrid;
 
 use pyo3::prelude::*;
 
@@ -34,5 +35,7 @@ fn _agglo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ensemble::ensemble, m)?)?;
     m.add_function(wrap_pyfunction!(columns::table_units, m)?)?;
     m.add_function(wrap_pyfunction!(kernel::measure_kernel, m)?)?;
+    m.add_class::<subgrid::Coupling>()?;
+    m.add_class::<subgrid::CellState>()?;
     Ok(())
 }

@@ -1,0 +1,160 @@
+//! The C interface as a C program sees it: the committed header is what cbindgen
+//! generates from the source, `examples/advance_cells.c` compiles against it with
+//! warnings as errors, links to the shared library and passes its own checks; and the
+//! calls refuse NULLs and bad lengths by name, from Rust.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use agglo_c::AggloStatus;
+
+fn crate_dir() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The header cbindgen makes from the crate now.
+fn generated_header() -> String {
+    let config = cbindgen::Config::from_file(crate_dir().join("cbindgen.toml")).unwrap();
+    let mut out = Vec::new();
+    cbindgen::Builder::new()
+        .with_crate(crate_dir())
+        .with_config(config)
+        .generate()
+        .expect("cbindgen reads the crate")
+        .write(&mut out);
+    String::from_utf8(out).unwrap()
+}
+
+/// `capi/include/agglo.h` is cbindgen's output for the current source (run with
+/// AGGLO_BLESS=1 to rewrite it after changing the interface).
+#[test]
+fn the_header_is_current() {
+    let path = crate_dir().join("include/agglo.h");
+    let generated = generated_header();
+    if std::env::var_os("AGGLO_BLESS").is_some() {
+        std::fs::write(&path, &generated).unwrap();
+    }
+    let committed = std::fs::read_to_string(&path).unwrap_or_default();
+    assert!(
+        committed == generated,
+        "{} is not what cbindgen generates from capi/src: rerun with AGGLO_BLESS=1 \
+         cargo test -p agglo-capi --test c_program and commit the header",
+        path.display()
+    );
+}
+
+/// The directory holding libagglo_c.so: cargo builds the library's every crate type
+/// for the tests, beside the test binary's `deps/`.
+fn library_dir() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
+    assert!(
+        dir.join("libagglo_c.so").exists(),
+        "no libagglo_c.so in {}",
+        dir.display()
+    );
+    dir
+}
+
+#[test]
+fn the_c_example_compiles_runs_and_its_checks_hold() {
+    let build = tempfile::tempdir().unwrap();
+    let exe = build.path().join("advance_cells");
+    let lib = library_dir();
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let compiled = Command::new(&cc)
+        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"])
+        .arg("-I")
+        .arg(crate_dir().join("include"))
+        .arg(crate_dir().join("examples/advance_cells.c"))
+        .arg("-L")
+        .arg(&lib)
+        .arg("-lagglo_c")
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .args(["-lm", "-o"])
+        .arg(&exe)
+        .output()
+        .unwrap_or_else(|e| panic!("running {cc}: {e}"));
+    assert!(
+        compiled.status.success(),
+        "{cc} failed:\n{}",
+        String::from_utf8_lossy(&compiled.stderr)
+    );
+    let scenario = crate_dir().join("../scenarios/ballistic_aggregation.json");
+    let run = Command::new(&exe).arg(&scenario).output().unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "the C program failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    // Its own checks held; the lines below show they ran.
+    for line in [
+        "all checks hold",
+        "alone: the same bytes as in the batch",
+        "bad input: status 3: cell 7: classes[2].number_density",
+    ] {
+        assert!(stdout.contains(line), "no {line:?} in:\n{stdout}");
+    }
+}
+
+/// NULLs, wrong lengths and unknown names are refused with a message naming the
+/// argument, never a crash.
+#[test]
+fn nulls_and_bad_lengths_are_refused_by_name() {
+    use agglo_c::coupling::*;
+    use agglo_c::error::agglo_last_error;
+    let message = || {
+        // SAFETY: the library's message is a valid C string until the next call.
+        unsafe { std::ffi::CStr::from_ptr(agglo_last_error()) }
+            .to_string_lossy()
+            .into_owned()
+    };
+    let mut coupling = std::ptr::null_mut();
+    let edges = [1e-9, 1e-6];
+    // SAFETY: every pointer is valid or NULL, as each case says.
+    unsafe {
+        let status = agglo_coupling_new(
+            std::ptr::null(),
+            edges.as_ptr(),
+            2,
+            std::ptr::null(),
+            &mut coupling,
+        );
+        assert_eq!(status, AggloStatus::Argument);
+        assert!(message().contains("scenario_json is NULL"), "{}", message());
+        let json = c"{\"name\": \"x\"";
+        let status = agglo_coupling_new(
+            json.as_ptr(),
+            edges.as_ptr(),
+            2,
+            std::ptr::null(),
+            &mut coupling,
+        );
+        assert_eq!(status, AggloStatus::Config);
+        assert!(message().starts_with("scenario:"), "{}", message());
+        let path = c"../scenarios/ballistic_aggregation.json";
+        let status = agglo_coupling_load(
+            path.as_ptr(),
+            std::ptr::null(),
+            3,
+            std::ptr::null(),
+            &mut coupling,
+        );
+        assert_eq!(status, AggloStatus::Argument);
+        assert!(message().contains("edges is NULL"), "{}", message());
+        let falling = [1e-6, 1e-9];
+        let status = agglo_coupling_load(
+            path.as_ptr(),
+            falling.as_ptr(),
+            2,
+            std::ptr::null(),
+            &mut coupling,
+        );
+        assert_eq!(status, AggloStatus::Config);
+        assert!(message().contains("edges[1]"), "{}", message());
+        assert!(coupling.is_null());
+        assert_eq!(agglo_coupling_classes(std::ptr::null()), 0);
+        agglo_coupling_free(std::ptr::null_mut());
+    }
+}
