@@ -105,7 +105,9 @@ typedef struct AggloCouplingOptions {
   // continue the state's boxes and use only the input's gas and Δt.
   bool keep_bodies;
   // Pool the kernel counts and exposure of the boxes (`agglo kernel`'s sums) into
-  // each output (the `kernel_*` figures).
+  // each output: the figures `kernel_exposure` [s/m³], `kernel_bonds`,
+  // `kernel_bounces`, `kernel_fragments` [impacts], (classes × classes) sums over the
+  // replicas whose standard errors are NaN.
   bool kernel;
 } AggloCouplingOptions;
 

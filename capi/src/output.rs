@@ -6,7 +6,9 @@
 //! class), `temperature`, `class_granular_temperature`, `present`; per cell
 //! `granular_temperature`, `gas_momentum_rate` (3), `force_work_rate`,
 //! `heat_loss_rate`, `reaction_heat_rate`, `dissipation_rate`, `fracture_energy_rate`,
-//! `impact_rate`, `bond_rate`, `bounce_rate`, `fragment_rate`, `bodies`.
+//! `impact_rate`, `bond_rate`, `bounce_rate`, `fragment_rate`, `bodies`; with the
+//! coupling's `kernel` option also `kernel_exposure`, `kernel_bonds`, `kernel_bounces`,
+//! `kernel_fragments` (classes × classes, pooled sums: standard errors NaN).
 
 use std::ffi::{CString, c_char};
 

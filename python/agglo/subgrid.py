@@ -47,7 +47,9 @@ class CellOutput:
     ``gas_momentum_rate`` (3), ``force_work_rate``, ``heat_loss_rate``,
     ``reaction_heat_rate``, ``dissipation_rate``, ``fracture_energy_rate`` [W/m³],
     ``impact_rate``, ``bond_rate``, ``bounce_rate``, ``fragment_rate`` [1/(m³ s)],
-    ``bodies`` [per box].
+    ``bodies`` [per box]. With ``Coupling(kernel=True)``: ``kernel_exposure`` [s/m³],
+    ``kernel_bonds``, ``kernel_bounces``, ``kernel_fragments`` (classes, classes), the
+    pooled sums of ``agglo kernel`` over the replicas (their ``se`` is NaN).
     """
 
     __slots__ = ("mean", "se", "units", "cell", "macro_step", "dt", "replicas", "box_volume")

@@ -130,3 +130,19 @@ def test_bad_input_names_the_cell_and_the_field(coupling):
         coupling.advance_cells(0, [1], drag={"sticky": 1}, **inputs)
     with pytest.raises(agglo.ScenarioError, match="edges"):
         Coupling(agglo.Scenario.load(BASE), [1.0, 0.5])
+
+
+def test_the_kernel_sums_count_the_bonds_of_every_replica():
+    base = agglo.Scenario.load(BASE)
+    c = Coupling(base, edges_of(base), bodies=300, replicas=3, kernel=True)
+    out, _ = c.advance(2, 0, **{k: (v[0] if isinstance(v, np.ndarray) else v)
+                               for k, v in monomers(c, [0.04]).items()})
+    bonds = out["kernel_bonds"]
+    assert bonds.shape == (CLASSES, CLASSES)
+    assert np.isnan(out.se["kernel_bonds"]).all()
+    # The pooled counts are the bonds of all K boxes; bond_rate is their mean per box
+    # per volume and time, so the two agree to rounding.
+    per_boxes = out["bond_rate"] * out.box_volume * out.dt * out.replicas
+    assert bonds.sum() > 0 and bonds.sum() == pytest.approx(per_boxes, rel=1e-9)
+    assert np.all(np.tril(bonds, -1) == 0)  # filled for i <= j only
+    assert (out["kernel_exposure"] > 0).any()

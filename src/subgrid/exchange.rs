@@ -189,7 +189,8 @@ pub struct Column {
 }
 
 impl CellOutput {
-    /// Every figure as a named column, in a fixed order (the per-class ones first).
+    /// Every figure as a named column, in a fixed order (the per-class ones first; with
+    /// the kernel, its pooled sums last).
     pub fn columns(&self) -> Vec<Column> {
         let k = self.classes.len();
         let per_class = |name, unit, f: fn(&ClassOutput) -> Stat| Column {
@@ -221,7 +222,7 @@ impl CellOutput {
             mean: vec![s.mean],
             se: vec![s.se],
         };
-        vec![
+        let mut columns = vec![
             per_class("number_rate", "1/(m^3 s)", |c| c.number_rate),
             per_class("mass_rate", "kg/(m^3 s)", |c| c.mass_rate),
             per_class3("momentum_rate", "N/m^3", |c| c.momentum_rate),
@@ -255,8 +256,39 @@ impl CellOutput {
             scalar("bounce_rate", "1/(m^3 s)", self.bounce_rate),
             scalar("fragment_rate", "1/(m^3 s)", self.fragment_rate),
             scalar("bodies", "bodies per box", self.bodies),
-        ]
+        ];
+        if let Some(kernel) = &self.kernel {
+            columns.extend(kernel_columns(&kernel.pooled));
+        }
+        columns
     }
+}
+
+/// The pooled kernel sums as columns (with [`super::Coupling::kernel`]): the exposure
+/// and the impacts per outcome of each class pair, (classes, classes) row-major, filled
+/// for i ≤ j. They are sums over the K replicas, not means: their `se` is NaN.
+fn kernel_columns(t: &crate::kernel::Tally) -> Vec<Column> {
+    let k = t.classes;
+    let pairs = k * k;
+    let sums = |name, unit, mean: Vec<f64>| Column {
+        name,
+        unit,
+        shape: vec![k, k],
+        se: vec![f64::NAN; mean.len()],
+        mean,
+    };
+    let counts = |o: usize| {
+        t.counts[o * pairs..(o + 1) * pairs]
+            .iter()
+            .map(|&c| c as f64)
+            .collect()
+    };
+    vec![
+        sums("kernel_exposure", "s/m^3", t.exposure.clone()),
+        sums("kernel_bonds", "impacts", counts(0)),
+        sums("kernel_bounces", "impacts", counts(1)),
+        sums("kernel_fragments", "impacts", counts(2)),
+    ]
 }
 
 impl CellInput {
