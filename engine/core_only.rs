@@ -12,7 +12,7 @@ use bevy_ecs::prelude::*;
 use bevy_ecs::system::ScheduleSystem;
 
 use crate::resources::EventStats;
-use crate::schedule::StepSystems;
+use crate::schedule::{SimBuilder, StepSystems};
 
 /// The builder calls a core plugin needs beyond [`crate::schedule::SimBuilder`]'s.
 pub trait SimBuilderCore {
@@ -47,4 +47,41 @@ pub trait SimBuilderCore {
     /// outcomes (in [`crate::hooks::ImpactOutcomeSystems::Apply`]), used at build only
     /// if an extension added outcome systems.
     fn set_impact_outcome_applier(&mut self, add: fn(&mut Schedule)) -> &mut Self;
+}
+
+// Here rather than in schedule.rs, so that the builder does not depend on the wall
+// built around it.
+impl SimBuilderCore for SimBuilder {
+    fn add_core_systems<M>(
+        &mut self,
+        stage: StepSystems,
+        systems: impl IntoScheduleConfigs<ScheduleSystem, M>,
+    ) -> &mut Self {
+        self.schedule.add_systems(systems.in_set(stage));
+        self
+    }
+
+    fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+
+    fn when_built(&mut self, finish: impl FnOnce(&mut World) + 'static) -> &mut Self {
+        self.finishers.push(Box::new(finish));
+        self
+    }
+
+    fn explain_core(&mut self, why: impl Into<String>) -> &mut Self {
+        self.core_reason = why.into();
+        self
+    }
+
+    fn report_core_stats(&mut self, read: fn(&World) -> EventStats) -> &mut Self {
+        self.core_stats = Some(read);
+        self
+    }
+
+    fn set_impact_outcome_applier(&mut self, add: fn(&mut Schedule)) -> &mut Self {
+        self.outcome_applier = Some(add);
+        self
+    }
 }

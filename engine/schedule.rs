@@ -171,30 +171,30 @@ pub struct RunInfo {
 type Rotate = fn(&mut World);
 
 /// Work a plugin leaves for [`SimBuilder::build`].
-type Finisher = Box<dyn FnOnce(&mut World)>;
+pub(crate) type Finisher = Box<dyn FnOnce(&mut World)>;
 
 /// A world and schedule under construction: the calls every plugin may make (its own
 /// resources, systems in any stage, forces, fields, hooks, carried quantities, restart
 /// parts). What only a core plugin needs is in [`crate::core_only::SimBuilderCore`];
 /// docs/extending.md, "The plugin API", lists both.
 pub struct SimBuilder {
-    world: World,
-    schedule: Schedule,
+    pub(crate) world: World,
+    pub(crate) schedule: Schedule,
     forces: Option<Schedule>,
     runs_forces: bool,
     info: RunInfo,
     plugins: Vec<&'static str>,
-    core_reason: String,
+    pub(crate) core_reason: String,
     left_out: Vec<String>,
-    core_stats: Option<fn(&World) -> EventStats>,
+    pub(crate) core_stats: Option<fn(&World) -> EventStats>,
     /// Work left for [`SimBuilder::build`], once every plugin has had its say.
-    finishers: Vec<Finisher>,
+    pub(crate) finishers: Vec<Finisher>,
     /// Subscribed message types and the function that rotates each one's buffers.
     subscriptions: Vec<(std::any::TypeId, Rotate)>,
     /// True once an extension added impact-outcome systems.
     outcome_hooks: bool,
     /// Adds the system that applies pending impact outcomes (the impact plugin's).
-    outcome_applier: Option<fn(&mut Schedule)>,
+    pub(crate) outcome_applier: Option<fn(&mut Schedule)>,
     /// Why [`SimBuilder::build`] must fail: a plugin replaced the run's books.
     refused: Vec<String>,
 }
@@ -655,41 +655,6 @@ impl SimBuilder {
             checkpoint_seconds: 0.0,
             completed: false,
         })
-    }
-}
-
-impl crate::core_only::SimBuilderCore for SimBuilder {
-    fn add_core_systems<M>(
-        &mut self,
-        stage: StepSystems,
-        systems: impl IntoScheduleConfigs<ScheduleSystem, M>,
-    ) -> &mut Self {
-        self.schedule.add_systems(systems.in_set(stage));
-        self
-    }
-
-    fn world_mut(&mut self) -> &mut World {
-        &mut self.world
-    }
-
-    fn when_built(&mut self, finish: impl FnOnce(&mut World) + 'static) -> &mut Self {
-        self.finishers.push(Box::new(finish));
-        self
-    }
-
-    fn explain_core(&mut self, why: impl Into<String>) -> &mut Self {
-        self.core_reason = why.into();
-        self
-    }
-
-    fn report_core_stats(&mut self, read: fn(&World) -> EventStats) -> &mut Self {
-        self.core_stats = Some(read);
-        self
-    }
-
-    fn set_impact_outcome_applier(&mut self, add: fn(&mut Schedule)) -> &mut Self {
-        self.outcome_applier = Some(add);
-        self
     }
 }
 

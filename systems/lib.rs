@@ -16,6 +16,7 @@
 
 pub mod boundary;
 pub mod contact;
+mod contact_plugin;
 pub mod cooling;
 pub mod diagnostics;
 pub mod drift;
@@ -25,7 +26,7 @@ pub mod impact;
 pub mod merge;
 pub mod time_step;
 
-pub use contact::ContactPlugin;
+pub use contact_plugin::ContactPlugin;
 pub use cooling::CoolingPlugin;
 pub use diagnostics::DiagnosticsPlugin;
 pub use drift::MotionPlugin;

@@ -58,7 +58,8 @@ pub struct AggloCellInput {
 /// Advance one cell over its macro step. `*state` is NULL (lift the cell's bodies from
 /// the input) or the cell's state from its previous step; on success it is replaced by
 /// the new state (the old one is freed) and `*out` holds the output (free it with
-/// `agglo_output_free`). On failure neither is touched.
+/// `agglo_output_free`; whatever `*out` held before is overwritten, not freed). On
+/// failure neither is touched.
 ///
 /// # Safety
 /// `coupling` a live coupling; `input` points to an input whose arrays hold the
@@ -96,7 +97,8 @@ pub unsafe extern "C" fn agglo_cell_advance(
 /// Advance a macro step's `n_cells` cells as independent tasks on `threads` worker
 /// threads (0: one per core). Cell i has id `cells[i]`, input `inputs[i]` and state
 /// `states[i]` (NULL: lift from the input), replaced on success as in
-/// `agglo_cell_advance`; `outs[i]` gets its output, or NULL when it failed, and
+/// `agglo_cell_advance`; `outs[i]` gets its output, or NULL when it failed (what it held
+/// before is overwritten, not freed), and
 /// `statuses[i]` (NULL: not wanted) its status. Returns `AGGLO_STATUS_OK` when every
 /// cell advanced, else the first failed cell's status, with every failed cell's message
 /// (one per line) in `agglo_last_error()`. A cell's output is the same bytes for any

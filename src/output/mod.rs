@@ -6,6 +6,7 @@
 //! with its unit: [`schema`], docs/outputs.md.
 
 pub mod collisions;
+mod column;
 pub mod offload;
 mod parquet_sink;
 pub mod run;

@@ -27,7 +27,7 @@ use parquet::file::writer::SerializedFileWriter;
 use parquet::schema::parser::parse_message_type;
 use parquet::schema::types::TypePtr;
 
-use super::table::{Cell, Column, Kind};
+use super::column::{Cell, Column, Kind};
 
 /// Rows buffered before a Parquet row group is written (13 DOUBLE columns: ~14 MB).
 pub const ROW_GROUP_ROWS: usize = 131_072;
@@ -214,7 +214,8 @@ fn land(file: &mut File, at: u64, bytes: &[u8], footer: &[u8]) -> anyhow::Result
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::output::table::{float, id, read_table, text};
+    use crate::output::column::{float, id, text};
+    use crate::output::table::read_table;
 
     const COLUMNS: [Column; 3] = [
         float("x", "m", "a float"),
