@@ -43,8 +43,7 @@ def run(cells: int, steps: int, length: float = 0.02, speed: float = 2.0, phi_in
         bodies: int = 1000, replicas: int = 2, threads: int = 0) -> dict:
     """Run the duct; return the final class densities per cell and the ledgers."""
     base = agglo.Scenario.load(ROOT / "scenarios/ballistic_aggregation.json")
-    m0 = Coupling(base, [1e-30, 1.0]).primary[1]
-    b0 = Coupling(base, [1e-30, 1.0]).primary[0]
+    b0, m0 = Coupling(base, [1e-30, 1.0]).primary  # the primary grain's radius and mass
     coupling = Coupling(base, EDGES_IN_PRIMARIES * m0, bodies=bodies, replicas=replicas)
     k = coupling.classes
     dx = length / cells

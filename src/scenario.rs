@@ -69,7 +69,7 @@ pub struct Scenario {
     #[serde(default)]
     pub output: Output,
     /// The sections of the extensions this binary carries, one per plugin, named after
-    /// it: `"plugins": {"charged_grains": {"q0": 1e-8}}` (src/plugins.rs). Left out of
+    /// it: `"plugins": {"charged_grains": {"q0": 1e-8}}` (src/plugins/). Left out of
     /// the JSON when empty, so a scene without extensions reads and writes as before.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub plugins: BTreeMap<String, serde_json::Value>,
@@ -127,7 +127,7 @@ impl Scenario {
             .map_err(|e| malformed(format!("{what} has more after the scenario's object: {e}")))?;
         let mut scenario = scenario;
         scenario.load_cloud_file()?;
-        crate::plugins::canonical_sections(&mut scenario);
+        crate::plugins::registry::canonical_sections(&mut scenario.plugins);
         scenario.validate()?;
         Ok(scenario)
     }
@@ -140,7 +140,7 @@ impl Scenario {
                 message: e.inner().to_string(),
             })?;
         scenario.load_cloud_file()?;
-        crate::plugins::canonical_sections(&mut scenario);
+        crate::plugins::registry::canonical_sections(&mut scenario.plugins);
         scenario.validate()?;
         Ok(scenario)
     }
@@ -192,7 +192,7 @@ impl Scenario {
         let mut schema =
             serde_json::to_value(schemars::schema_for!(Scenario)).expect("schema serialises"); // ok: plain data
         let mut defs = serde_json::Map::new();
-        let plugins = crate::plugins::sections_schema(&mut defs);
+        let plugins = crate::plugins::registry::sections_schema(&mut defs);
         if let Some(root) = schema.as_object_mut() {
             if let Some(serde_json::Value::Object(properties)) = root.get_mut("properties") {
                 properties.insert("plugins".into(), plugins);
@@ -221,7 +221,8 @@ impl Scenario {
     /// one-body copy of the scene gets the same systems at no cost for any N.
     pub fn pipeline(&self) -> Result<Pipeline, SimError> {
         self.validate()?;
-        let sim = crate::plugins::simulation(&self.one_body_copy())?;
+        let copy = self.one_body_copy();
+        let sim = crate::plugins::registry::build(&copy, &copy.plugins)?.build()?;
         Ok(sim.pipeline().clone())
     }
 
@@ -541,7 +542,8 @@ impl Scenario {
             }
         }
 
-        v.issues.extend(crate::plugins::check_sections(self));
+        v.issues
+            .extend(crate::plugins::registry::check_sections(&self.plugins));
         if v.issues.is_empty() {
             Ok(())
         } else {
@@ -903,7 +905,7 @@ impl Scene for Scenario {
             // of this scenario takes them, whatever writes them out.
             world.insert_resource(agglo_engine::restart::Checkpoints::every(restart.every));
         }
-        crate::plugins::insert_sections(self, world);
+        crate::plugins::registry::insert_sections(&self.plugins, world);
         world.insert_resource(self.clone());
     }
 }

@@ -121,7 +121,6 @@ pub unsafe extern "C" fn agglo_cells_advance(
     statuses: *mut AggloStatus,
     threads: usize,
 ) -> AggloStatus {
-    let mut first_failure = AggloStatus::Ok;
     guard(|| {
         // SAFETY: the caller's contract.
         let c = &unsafe { handle(coupling, "coupling") }?.0;
@@ -143,6 +142,7 @@ pub unsafe extern "C" fn agglo_cells_advance(
         }
         let results = subgrid::advance_cells(c, macro_step, &batch, &Workers::local(threads));
         let mut messages = Vec::new();
+        let mut first_failure = AggloStatus::Ok;
         for (i, result) in results.into_iter().enumerate() {
             let cell_status = match result {
                 Ok((output, new)) => {

@@ -73,11 +73,8 @@ pub unsafe extern "C" fn agglo_coupling_new(
         // SAFETY: the caller's contract, passed on.
         let json = unsafe { text(scenario_json, "scenario_json") }?;
         let scenario = Scenario::from_json(json).map_err(scenario_failure)?;
-        // SAFETY: as above.
-        let coupling = unsafe { make(scenario, edges, n_edges, options) }?;
-        // SAFETY: `out` checked non-NULL; the caller gave writable storage.
-        unsafe { *out = Box::into_raw(Box::new(AggloCoupling(coupling))) };
-        Ok(())
+        // SAFETY: as above; `out` checked non-NULL.
+        unsafe { make_into(scenario, edges, n_edges, options, out) }
     })
 }
 
@@ -99,11 +96,8 @@ pub unsafe extern "C" fn agglo_coupling_load(
         // SAFETY: the caller's contract, passed on.
         let path = unsafe { text(path, "path") }?;
         let scenario = Scenario::load(std::path::Path::new(path)).map_err(scenario_failure)?;
-        // SAFETY: as above.
-        let coupling = unsafe { make(scenario, edges, n_edges, options) }?;
-        // SAFETY: `out` checked non-NULL.
-        unsafe { *out = Box::into_raw(Box::new(AggloCoupling(coupling))) };
-        Ok(())
+        // SAFETY: as above; `out` checked non-NULL.
+        unsafe { make_into(scenario, edges, n_edges, options, out) }
     })
 }
 
@@ -161,6 +155,25 @@ fn scenario_failure(e: impl std::fmt::Display) -> Failure {
         status: AggloStatus::Config,
         message: format!("scenario: {e}"),
     }
+}
+
+/// Make the coupling of `scenario` on the edges with the options, checked, into `*out`.
+///
+/// # Safety
+/// `edges` points to `n_edges` doubles; `options` is NULL or points to options; `out`
+/// is non-NULL and writable.
+unsafe fn make_into(
+    scenario: Scenario,
+    edges: *const f64,
+    n_edges: usize,
+    options: *const AggloCouplingOptions,
+    out: *mut *mut AggloCoupling,
+) -> Result<(), Failure> {
+    // SAFETY: the caller's contract.
+    let coupling = unsafe { make(scenario, edges, n_edges, options) }?;
+    // SAFETY: `out` is non-NULL and writable (the caller's contract).
+    unsafe { *out = Box::into_raw(Box::new(AggloCoupling(coupling))) };
+    Ok(())
 }
 
 /// The coupling of `scenario` on the edges with the options, checked.

@@ -1,4 +1,4 @@
-//! Extensions in the binary (src/plugins.rs, `agglo::cli::main_with`): the example
+//! Extensions in the binary (src/plugins/, `agglo::cli::main_with`): the example
 //! programs `charged_grains` and `first_force` are the `agglo` command line with one
 //! plugin each, and their sections (`plugins.charged_grains`, `plugins.gyration`) are
 //! validated, set, documented, recorded, resumed, scanned and optimised exactly as a
