@@ -43,14 +43,33 @@ fn the_header_is_current() {
     );
 }
 
-/// The directory holding libagglo_c.so: cargo builds the library's every crate type
-/// for the tests, beside the test binary's `deps/`.
+/// The directory holding libagglo_c.so. `cargo test` builds this crate's rlib for the
+/// tests but not its cdylib (only `cargo build` does), so the test builds the library
+/// itself with the cargo that runs it, in the same profile and target directory: on a
+/// fresh clone the README's `cargo test` must pass without a `cargo build` before it.
 fn library_dir() -> PathBuf {
     let exe = std::env::current_exe().unwrap();
+    // target/<profile>/deps/c_program-… → target/<profile>
     let dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
+    let profile = dir.file_name().unwrap().to_string_lossy().into_owned();
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut build = Command::new(&cargo);
+    build
+        .args(["build", "--quiet", "-p", "agglo-capi", "--lib"])
+        .current_dir(crate_dir());
+    // The test binary sits in target/<profile>; `debug` is cargo's name for the dev profile.
+    if profile != "debug" {
+        build.args(["--profile", &profile]);
+    }
+    let target_dir = dir.parent().unwrap();
+    build.env("CARGO_TARGET_DIR", target_dir);
+    let status = build
+        .status()
+        .unwrap_or_else(|e| panic!("running {cargo}: {e}"));
+    assert!(status.success(), "{cargo} build -p agglo-capi --lib failed");
     assert!(
         dir.join("libagglo_c.so").exists(),
-        "no libagglo_c.so in {}",
+        "no libagglo_c.so in {} after building it",
         dir.display()
     );
     dir
