@@ -306,7 +306,9 @@ pub fn placed_bodies(
                 i,
                 "mass",
                 format!(
-                    "{mass:e} kg, but {} primaries of {:e} kg make {implied:e} kg: is cloud.radius                      (b0) or material.rho that of the run that wrote the body?",
+                    "{mass:e} kg, but {} primaries of {:e} kg make {implied:e} kg: is cloud.radius \
+                     (b0) or material.rho that of the run that wrote the body? (`agglo \
+                     validate` prints b0 to every digit)",
                     p.primaries, primary.mass
                 ),
             ));

@@ -125,6 +125,12 @@ def main(argv=None) -> int:
     p.add_argument("--threads", type=int, default=0)
     p.add_argument("--plot", help="draw the distribution to this PNG (needs matplotlib)")
     a = p.parse_args(argv)
+    if a.plot:
+        # Before the work, not after it: a missing matplotlib must not cost the run.
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            p.error("--plot needs matplotlib (pip install matplotlib)")
     r = run(a.cells, a.steps, bodies=a.bodies, replicas=a.replicas, threads=a.threads)
     print(f"{a.cells} cells x {a.steps} macro steps of {r['dt']:.3e} s; "
           f"agglo took {r['wall']:.2f} s of wall time")

@@ -19,4 +19,6 @@ echo "pip install ./python[test]: $(( $(date +%s) - start )) s"
 export AGGLO_BIN="${AGGLO_BIN:-$root/target/debug/agglo}"
 cd "$root"
 "$venv/bin/python" -m pytest -q python/tests
-"$venv/bin/python" docs/python_tutorial.py
+# The tutorial, run and compared with what docs/python.md says it prints
+# (docs/results/python_tutorial.txt; `docs/regenerate.py --only tutorial` rewrites it).
+"$venv/bin/python" docs/regenerate.py --check --only tutorial

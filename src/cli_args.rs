@@ -283,6 +283,16 @@ pub struct LiveArgs {
     /// id when the cloud is larger; /stats always covers every body).
     #[arg(long, value_name = "N", default_value_t = 10_000, requires = "live")]
     pub live_bodies: usize,
+    /// With --live: when the run ends with a client connected, keep serving its final
+    /// state until the client disconnects or SECONDS pass (0 ≤ SECONDS ≤ 86400; 0: close
+    /// at once). Every output is written before the wait.
+    #[arg(long, value_name = "SECONDS", default_value_t = crate::live::DEFAULT_LINGER_SECONDS, requires = "live")]
+    pub live_linger: f64,
+    /// With --live: run no faster than RATE simulated seconds per wall-clock second, so
+    /// that a short run can be watched (e.g. 1e-3 shows T = 0.01 s over 10 s). Only
+    /// waits: every output is the same as without it.
+    #[arg(long, value_name = "RATE", requires = "live")]
+    pub live_pace: Option<f64>,
 }
 
 /// The live flags of `agglo optimize`.

@@ -68,20 +68,18 @@ impl MemoryEstimate {
 
     /// One line for `agglo validate`.
     pub fn describe(&self) -> String {
+        // Say the fixed part: at small N it is most of the figure, and "16 MB for 300
+        // bodies (650 B per body)" does not add up without it.
+        let parts = format!(
+            "memory: about {:.0} MB for {} bodies ({:.0} MB fixed + {:.0} B per body)",
+            self.bytes / 1e6,
+            self.bodies,
+            BASE_BYTES / 1e6,
+            self.per_body(),
+        );
         match self.available {
-            Some(a) => format!(
-                "memory: about {:.0} MB for {} bodies ({:.0} B per body), {:.0} MB available",
-                self.bytes / 1e6,
-                self.bodies,
-                self.per_body(),
-                a / 1e6
-            ),
-            None => format!(
-                "memory: about {:.0} MB for {} bodies ({:.0} B per body); available memory unknown",
-                self.bytes / 1e6,
-                self.bodies,
-                self.per_body()
-            ),
+            Some(a) => format!("{parts}, {:.0} MB available", a / 1e6),
+            None => format!("{parts}; available memory unknown"),
         }
     }
 

@@ -746,7 +746,20 @@ pub fn with_settings(base: &Scenario, settings: &[String]) -> anyhow::Result<Sce
     }
     let mut scenario = Scenario::from_value(value)
         .map_err(|e| anyhow::anyhow!("--set {}: {e}", settings.join(" ")))?;
-    scenario.name = format!("{} ({})", base.name, settings.join(", "));
+    // The name records what changes the run; where its outputs go (`output.*`) does not,
+    // and a name carrying it would name the outputs after themselves (a restart file
+    // `quick_demo__output.restart.every_1e-3_.restart`).
+    let physics: Vec<&str> = settings
+        .iter()
+        .map(String::as_str)
+        .filter(|s| {
+            let path = s.split('=').next().unwrap_or("").trim();
+            path != "output" && !path.starts_with("output.")
+        })
+        .collect();
+    if !physics.is_empty() {
+        scenario.name = format!("{} ({})", base.name, physics.join(", "));
+    }
     Ok(scenario)
 }
 

@@ -23,7 +23,7 @@ pub struct ValidationReport {
 /// wrong: a scene that cannot be built, or one that cannot fit in memory.
 pub fn report(s: &Scenario) -> anyhow::Result<ValidationReport> {
     let mut text = format!(
-        "{}: valid — N = {}, b0 = {:.4e} m, volume fraction {:.4}, D = {} m, T = {} s, seed {}\n",
+        "{}: valid — N = {}, b0 = {:e} m, volume fraction {:.4}, D = {} m, T = {} s, seed {}\n",
         s.name,
         s.cloud.count,
         s.primary_radius(),

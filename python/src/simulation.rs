@@ -247,6 +247,10 @@ impl Inner {
                 wait: false,
                 rate_hz: 10.0,
                 max_bodies: 10_000,
+                // `run()` returns when the run ends: a notebook cell is not held open
+                // for a client (the CLI's --live-linger is for a terminal).
+                linger_seconds: 0.0,
+                pace: None,
             };
             plan.live = Some(options);
         }

@@ -32,3 +32,19 @@ def test_the_duct_grows_grains_downstream_and_balances_its_mass():
     # and the sources (which cancel between classes) are exact to rounding: 1e-12.
     balance = one["mass_in"] - one["mass_out"] - one["held"] + one["clipped"]
     assert abs(balance) <= 1e-12 * one["mass_in"], balance
+
+
+def test_plot_without_matplotlib_fails_before_the_work(monkeypatch, capsys):
+    d = duct()
+    ran = []
+    monkeypatch.setattr(d, "run", lambda *a, **k: ran.append(1))
+    # An entry of None in sys.modules makes `import matplotlib` raise ImportError.
+    monkeypatch.setitem(__import__("sys").modules, "matplotlib", None)
+    try:
+        d.main(["--plot", "x.png"])
+    except SystemExit as e:
+        assert e.code == 2
+    else:
+        raise AssertionError("--plot without matplotlib was accepted")
+    assert ran == [], "the duct ran before the refusal"
+    assert "needs matplotlib" in capsys.readouterr().err

@@ -197,6 +197,9 @@ pub fn scan(args: ScanArgs, cluster: Option<&Cluster>) -> anyhow::Result<()> {
         "--log: --from and --to must be > 0"
     );
     let n = args.points;
+    // Each point is rounded to 12 significant digits, so that a point two grids share
+    // (1e-5 on `--points 5` and on `--points 25`) is the same number on both, and with
+    // seeds that follow the value it is the same ensemble.
     let values: Vec<f64> = (0..n)
         .map(|i| {
             let t = i as f64 / (n - 1) as f64;
@@ -206,6 +209,7 @@ pub fn scan(args: ScanArgs, cluster: Option<&Cluster>) -> anyhow::Result<()> {
                 args.from + t * (args.to - args.from)
             }
         })
+        .map(inverse::scan_value)
         .collect();
     let cancel = interrupt_flag();
     let show = !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());

@@ -14,11 +14,13 @@ pub use agglo::cli_args::{LiveArgs, LiveInverseArgs};
 /// Flags of this module and whether each takes a value (the recording's command line
 /// leaves them out: they do not change the run, so a run with and without them records
 /// the same bytes).
-const LIVE_FLAGS: [(&str, bool); 4] = [
+const LIVE_FLAGS: [(&str, bool); 6] = [
     ("--live", false),
     ("--live-wait", false),
     ("--live-rate", true),
     ("--live-bodies", true),
+    ("--live-linger", true),
+    ("--live-pace", true),
 ];
 
 /// The command line as a recording keeps it: `args` without the live flags.
@@ -54,6 +56,8 @@ pub fn options(args: &LiveArgs) -> anyhow::Result<Option<LiveOptions>> {
         wait: args.live_wait,
         rate_hz: args.live_rate,
         max_bodies: args.live_bodies,
+        linger_seconds: args.live_linger,
+        pace: args.live_pace,
     };
     check_options(&options)?;
     Ok(Some(options))

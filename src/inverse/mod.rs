@@ -258,9 +258,21 @@ pub struct ScanPoint {
     pub eval: Evaluation,
 }
 
+/// `x` rounded to 12 significant digits: a scan point as `agglo scan` makes it, so that
+/// grids that share a point share its value bit for bit (`exp(ln a + t (ln b − ln a))`
+/// lands a few ulps off the round number, and differently on different grids).
+pub fn scan_value(x: f64) -> f64 {
+    if !x.is_finite() || x == 0.0 {
+        return x;
+    }
+    format!("{x:.11e}").parse().unwrap_or(x)
+}
+
 /// Evaluate the ensemble of the base scenario with `path` set to each of `values`
 /// (the problem's end-time rule, cost and ensemble rule apply; its genes do not).
-/// Sample seeds derive from (GA seed, point index, sample).
+/// Sample seeds derive from (GA seed, the point's value, sample) — not from the point's
+/// index (as before 2026-11-27), so that a finer scan reproduces the coarse scan's
+/// points exactly.
 pub fn scan(
     problem: &InverseProblem,
     path: &str,
@@ -283,7 +295,8 @@ pub fn scan(
                 path: path.to_string(),
                 value: x,
             },
-            seed_of: Box::new(move |s| derive_seed(&[seed, 2, i as u64, s as u64])),
+            // Domain 3 (2 was the index-based scheme): the value's bits name the point.
+            seed_of: Box::new(move |s| derive_seed(&[seed, 3, x.to_bits(), s as u64])),
             keep_radii: false,
             accumulator: Accumulator::new(&spec.ensemble, &spec.cost, spec.on_failure, (0, i)),
             label: format!("{path} = {x:e}"),

@@ -459,16 +459,21 @@ impl Figure for Convergence<'_> {
                     .map_err(err)?;
             }};
         }
+        // The legend (four lines, upper right) gets the top ~40 % of the plot to itself:
+        // the costs fall with the generations, so without this headroom it covered the
+        // last generations and the closing check.
         if log {
+            let headroom = (hi / lo).powf(0.7).max(1.25);
             finish!(
                 builder
-                    .build_cartesian_2d(-0.5..n - 0.5, (lo * 0.8..hi * 1.25).log_scale())
+                    .build_cartesian_2d(-0.5..n - 0.5, (lo * 0.8..hi * headroom).log_scale())
                     .map_err(err)?
             );
         } else {
+            let headroom = 0.7 * (hi - lo) + pad;
             finish!(
                 builder
-                    .build_cartesian_2d(-0.5..n - 0.5, (lo - pad)..(hi + pad))
+                    .build_cartesian_2d(-0.5..n - 0.5, (lo - pad)..(hi + headroom))
                     .map_err(err)?
             );
         }

@@ -56,6 +56,14 @@ pub const CLIENT_BACKLOG: usize = 32;
 /// How long the server stays up after the last frame for clients to receive it [s].
 const LINGER: Duration = Duration::from_millis(500);
 
+/// How long a finished run keeps serving its final state to a connected client, at most
+/// [s] (`--live-linger`): long enough to look at the last frame, short enough that a
+/// forgotten client does not hold a terminal for long.
+pub const DEFAULT_LINGER_SECONDS: f64 = 60.0;
+
+/// The longest `--live-linger` accepted [s] (a day).
+pub const MAX_LINGER_SECONDS: f64 = 86_400.0;
+
 /// How to serve a run live.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LiveOptions {
@@ -67,6 +75,13 @@ pub struct LiveOptions {
     pub rate_hz: f64,
     /// Bodies drawn in `/particles` at most, about (≥ 1); statistics cover all.
     pub max_bodies: usize,
+    /// When the run ends with a client connected, keep serving the final state until the
+    /// client disconnects or this many seconds pass [s] (0 ≤ linger ≤ a day; 0 closes at
+    /// once). The client is told by a status message that the run finished.
+    pub linger_seconds: f64,
+    /// Simulated seconds per wall-clock second, at most (> 0): the run waits after a
+    /// step that got ahead of it, so that a short run can be watched. `None`: full speed.
+    pub pace: Option<f64>,
 }
 
 /// Parse `--live ADDR`: `IP:PORT` or `HOST:PORT` (resolved now). The error names the text.
@@ -93,6 +108,17 @@ pub fn check_options(o: &LiveOptions) -> anyhow::Result<()> {
         "--live-rate: allowed 0.001 ≤ rate ≤ 1000 frames per second (got {})",
         o.rate_hz
     );
+    anyhow::ensure!(
+        o.linger_seconds.is_finite() && (0.0..=MAX_LINGER_SECONDS).contains(&o.linger_seconds),
+        "--live-linger: allowed 0 ≤ seconds ≤ {MAX_LINGER_SECONDS} (got {})",
+        o.linger_seconds
+    );
+    if let Some(pace) = o.pace {
+        anyhow::ensure!(
+            pace.is_finite() && pace > 0.0,
+            "--live-pace: allowed 0 < rate < ∞ simulated seconds per second (got {pace})"
+        );
+    }
     anyhow::ensure!(
         o.max_bodies >= 1,
         "--live-bodies: allowed ≥ 1 (got {})",
@@ -195,6 +221,14 @@ impl Server {
         self.handle.as_ref().map_or(0, |h| h.client_count())
     }
 
+    /// Tell every connected client `message` as a status (Foxglove shows it in its
+    /// problems list, at info level: not an error).
+    pub fn publish_status(&self, message: impl Into<String>) {
+        if let Some(handle) = &self.handle {
+            handle.publish_status(foxglove::websocket::Status::info(message));
+        }
+    }
+
     /// Block until one of `channels` has a subscriber, polling `stop` (Ctrl-C): returns
     /// false if a stop was asked for first.
     pub fn wait_for_subscriber(&self, channels: &[&Arc<RawChannel>], stop: &AtomicBool) -> bool {
@@ -274,6 +308,8 @@ mod tests {
             wait: false,
             rate_hz: 10.0,
             max_bodies: 10_000,
+            linger_seconds: DEFAULT_LINGER_SECONDS,
+            pace: None,
         };
         assert!(check_options(&ok).is_ok());
         for rate in [0.0, -1.0, f64::NAN, 1e4] {
@@ -284,6 +320,24 @@ mod tests {
             .unwrap_err()
             .to_string();
             assert!(e.contains("--live-rate"), "{e}");
+        }
+        for pace in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
+            let e = check_options(&LiveOptions {
+                pace: Some(pace),
+                ..ok.clone()
+            })
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("--live-pace"), "{e}");
+        }
+        for linger in [-1.0, f64::NAN, f64::INFINITY, 1e6] {
+            let e = check_options(&LiveOptions {
+                linger_seconds: linger,
+                ..ok.clone()
+            })
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("--live-linger"), "{e}");
         }
         let e = check_options(&LiveOptions {
             max_bodies: 0,

@@ -40,6 +40,9 @@ pub const SUBSET_NOTE_ID: &str = "live_subset";
 /// the run too); `--live-rate` only ever lowers the rate further.
 pub const TIME_BUDGET: f64 = 0.02;
 
+/// While a finished run lingers, its final frame goes out again this often.
+pub const REPUBLISH: Duration = Duration::from_secs(1);
+
 /// The channels of a run, for [`Server::bind`]: the recording's topics and schemas.
 pub fn topics() -> anyhow::Result<Vec<super::Topic>> {
     let scene = messages::scene_schema()?;
@@ -122,6 +125,13 @@ pub struct LiveRun {
     initial_kinetic_energy: f64,
     /// Frames the publisher had not sent when the next one came (replaced).
     dropped: u64,
+    /// How long the final state stays served to a connected client (`--live-linger`).
+    linger: Duration,
+    /// `--live-pace`: simulated seconds per wall second at most, with the simulated time
+    /// and the instant the paced clock started from.
+    pace: Option<(f64, f64, Instant)>,
+    /// The run's stop flag (Ctrl-C), polled while pacing or lingering.
+    stop: Arc<AtomicBool>,
 }
 
 impl LiveRun {
@@ -132,7 +142,7 @@ impl LiveRun {
         server: Server,
         options: &LiveOptions,
         sim: &Simulation,
-        stop: &AtomicBool,
+        stop: &Arc<AtomicBool>,
     ) -> anyhow::Result<Self> {
         let scenario = sim.world().get_resource::<Scenario>().ok_or_else(|| {
             anyhow::anyhow!("a live run needs a simulation built from a Scenario")
@@ -180,6 +190,11 @@ impl LiveRun {
             warnings: Warnings::new(sim),
             initial_kinetic_energy,
             dropped: 0,
+            linger: Duration::from_secs_f64(options.linger_seconds),
+            pace: options
+                .pace
+                .map(|rate| (rate, sim.clock().time, Instant::now())),
+            stop: stop.clone(),
         };
         if live.channels.subscribed() {
             live.hand_over(sim, bodies, vec![(Level::Info, start_event)], Vec::new());
@@ -187,8 +202,12 @@ impl LiveRun {
         Ok(live)
     }
 
-    /// Call after every step: one atomic load unless a frame is due and a client listens.
+    /// Call after every step: one atomic load unless a frame is due and a client listens
+    /// (and, with `--live-pace`, a wait while the run is ahead of its pace).
     pub fn observe(&mut self, sim: &Simulation) {
+        if let Some((rate, t0, started)) = self.pace {
+            self.keep_pace(sim.clock().time - t0, rate, started);
+        }
         if !self.shared.due.load(Ordering::Relaxed) {
             return;
         }
@@ -199,13 +218,16 @@ impl LiveRun {
     }
 
     /// Publish the last state and the outcome, let the clients receive them, and close
-    /// the server. Call on success, error and interruption alike. Returns the frames
-    /// dropped because the publisher was still busy with the one before.
+    /// the server. Call on success, error and interruption alike, after every other
+    /// output is written: with a client connected, the final state stays served (see
+    /// [`LiveRun::linger`]). Returns the frames dropped because the publisher was still
+    /// busy with the one before.
     pub fn finish(mut self, sim: &Simulation, outcome: &Result<(), SimError>) -> u64 {
+        let (_, level, message) = messages::outcome_message(sim, outcome);
         if self.channels.subscribed() {
-            let (_, level, message) = messages::outcome_message(sim, outcome);
-            self.capture(sim, vec![(level, message)]);
+            self.capture(sim, vec![(level, message.clone())]);
         }
+        self.linger(sim, &message);
         self.shared.lock().done = true;
         self.shared.wake.notify_all();
         if let Some(handle) = self.publisher.take() {
@@ -215,6 +237,62 @@ impl LiveRun {
             server.close();
         }
         self.dropped
+    }
+
+    /// Wait until `elapsed` simulated seconds are due at `rate` simulated seconds per
+    /// second after `started`, in short sleeps so that Ctrl-C still stops at once. The
+    /// publisher keeps its frame clock meanwhile, so frames go out during the wait.
+    fn keep_pace(&self, elapsed: f64, rate: f64, started: Instant) {
+        // Capped at a day: a simulated time far ahead of any useful pace is not a
+        // reason to sleep for ever (Duration::from_secs_f64 refuses huge values).
+        let due = Duration::from_secs_f64((elapsed / rate).clamp(0.0, 86_400.0));
+        loop {
+            let now = started.elapsed();
+            if now >= due || self.stop.load(Ordering::SeqCst) {
+                return;
+            }
+            std::thread::sleep((due - now).min(Duration::from_millis(50)));
+        }
+    }
+
+    /// With a client connected, tell it by a status (not an error) that the run finished,
+    /// and keep the final state served until it disconnects, the linger time passes or
+    /// a stop is asked for. The final frame goes out again every [`REPUBLISH`]: a panel
+    /// that subscribes after the run ended (a short run is over before the 3D panel has
+    /// asked for `/particles`) still gets the cloud.
+    fn linger(&mut self, sim: &Simulation, outcome: &str) {
+        let Some(server) = self.server.as_ref() else {
+            return;
+        };
+        if self.linger.is_zero() || server.clients() == 0 {
+            return;
+        }
+        server.publish_status(format!(
+            "agglo: the run has ended ({outcome}). Its final state stays served until you \
+             disconnect (at most {:.0} s).",
+            self.linger.as_secs_f64()
+        ));
+        eprintln!(
+            "live: the run has ended; serving its final state until the client disconnects \
+             (at most {:.0} s; --live-linger sets it, Ctrl-C ends it)",
+            self.linger.as_secs_f64()
+        );
+        let until = Instant::now() + self.linger;
+        let mut next_frame = Instant::now() + REPUBLISH;
+        loop {
+            let server = self.server.as_ref().expect("checked above");
+            let now = Instant::now();
+            if server.clients() == 0 || now >= until || self.stop.load(Ordering::SeqCst) {
+                return;
+            }
+            if now >= next_frame {
+                if self.channels.subscribed() {
+                    self.capture(sim, Vec::new());
+                }
+                next_frame = now + REPUBLISH;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
     }
 
     fn capture(&mut self, sim: &Simulation, closing: Vec<(Level, String)>) {

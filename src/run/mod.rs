@@ -409,9 +409,9 @@ impl Run {
             }
             None => None,
         };
-        if let Some(l) = self.outputs.live.take() {
-            l.finish(&self.sim, outcome);
-        }
+        // The live view last: with a client connected it may keep serving the final
+        // state for a while, and every file must be written before that wait.
+        let live = self.outputs.live.take();
         // A table whose writer failed during the run fails again here: the first error
         // is the one told.
         if let Some(t) = self.outputs.tables.take()
@@ -430,6 +430,9 @@ impl Run {
             && let Err(e) = write_summary(path, &summary)
         {
             error.get_or_insert(e);
+        }
+        if let Some(l) = live {
+            l.finish(&self.sim, outcome);
         }
         RunEnd {
             summary,
@@ -515,7 +518,7 @@ fn start_live(
     sim: &Simulation,
     scenario: &Scenario,
     beside: Option<&Path>,
-    stop: &AtomicBool,
+    stop: &Arc<AtomicBool>,
 ) -> anyhow::Result<LiveRun> {
     let layout = match beside {
         Some(p) => crate::record::layout::layout_path_for(p),

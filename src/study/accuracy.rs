@@ -172,11 +172,53 @@ pub struct Row {
     pub parameter: f64,
     pub measurement: Measurement,
     pub errors: Errors,
+    /// b_f/b0 over the study's seeds, for a setting whose single run says little: one
+    /// that left impacts unconverged (the papers' plain iteration), whose outcome turns on
+    /// which iterate the cap lands on. `None` for the other rows (their spread is the
+    /// reference's noise band).
+    pub ensemble: Option<Ensemble>,
 }
 
 impl Row {
     pub fn failed(&self) -> bool {
         self.measurement.failure.is_some()
+    }
+}
+
+/// b_f/b0 of one setting over several seeds (the scenario's own seed first).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ensemble {
+    /// Seeds run.
+    pub seeds: usize,
+    /// Seeds whose run failed (left out of the mean).
+    pub failed: usize,
+    /// Mean b_f/b0 over the runs that did not fail.
+    pub growth_mean: f64,
+    /// Standard error of that mean (sample standard deviation / √runs; NaN below 2 runs).
+    pub growth_se: f64,
+}
+
+impl Ensemble {
+    fn of(measurements: &[Measurement]) -> Self {
+        let growths: Vec<f64> = measurements
+            .iter()
+            .filter(|m| m.failure.is_none())
+            .map(|m| m.growth_ratio)
+            .collect();
+        let n = growths.len();
+        let mean = growths.iter().sum::<f64>() / n as f64;
+        let se = if n >= 2 {
+            let var = growths.iter().map(|g| (g - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+            (var / n as f64).sqrt()
+        } else {
+            f64::NAN
+        };
+        Self {
+            seeds: measurements.len(),
+            failed: measurements.len() - n,
+            growth_mean: if n > 0 { mean } else { f64::NAN },
+            growth_se: se,
+        }
     }
 }
 
@@ -437,6 +479,9 @@ pub fn measure(scenario: &Scenario, repeats: usize) -> anyhow::Result<Measuremen
                 failure: outcome.err().map(|e| e.to_string()),
                 ..Default::default()
             });
+            if let Some(m) = first.as_mut() {
+                m.failure = m.failure.take().or_else(|| silent_failure(m));
+            }
         }
         // A failed run is not worth timing again.
         if first.as_ref().is_some_and(|m| m.failure.is_some()) {
@@ -448,6 +493,25 @@ pub fn measure(scenario: &Scenario, repeats: usize) -> anyhow::Result<Measuremen
     m.wall_min = walls.iter().copied().fold(f64::INFINITY, f64::min);
     m.wall_max = walls.iter().copied().fold(0.0, f64::max);
     Ok(m)
+}
+
+/// Why a run that ended without an error is still no result: failed invariant checks
+/// or a non-finite observable (a NaN mean temperature once let runs that had blown up be
+/// charted as results). `None` for a sound run.
+fn silent_failure(m: &Measurement) -> Option<String> {
+    if m.invariant_violations > 0 {
+        Some(format!(
+            "{} invariant violations (docs/model.md §12)",
+            m.invariant_violations
+        ))
+    } else if !m.growth_ratio.is_finite() || !m.mean_temperature.is_finite() {
+        Some(format!(
+            "non-finite observables at the end: b_f/b0 = {}, mean temperature = {}",
+            m.growth_ratio, m.mean_temperature
+        ))
+    } else {
+        None
+    }
 }
 
 /// One run of the study, as a task of the farm: the scene as JSON (postcard cannot
@@ -562,8 +626,33 @@ pub fn run_accuracy(
         parameter: 1.0,
         errors: Errors::between(&reference, &reference),
         measurement: reference.clone(),
+        ensemble: None,
     }];
-    for (variant, m) in variants.into_iter().zip(measured) {
+    let measured: Vec<Measurement> = measured.collect();
+    // A setting that left impacts unconverged is run over the noise band's seeds too: its
+    // single seed is one draw of a method whose bond-or-bounce turns on the iteration cap.
+    let unconverged: Vec<usize> = measured
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.failure.is_none() && m.unconverged > 0)
+        .map(|(k, _)| k)
+        .collect();
+    let mut ensemble_tasks = Vec::new();
+    for &k in &unconverged {
+        for &seed in &noise_seeds {
+            let mut s = variants[k].scenario.clone();
+            s.seed = seed;
+            ensemble_tasks.push(MeasureTask::of(&s, 1));
+        }
+    }
+    let mut ensemble_runs = measure_all(workers, ensemble_tasks)?.into_iter();
+    let mut ensembles: Vec<Option<Ensemble>> = vec![None; measured.len()];
+    for &k in &unconverged {
+        let mut runs = vec![measured[k].clone()];
+        runs.extend(ensemble_runs.by_ref().take(noise_seeds.len()));
+        ensembles[k] = Some(Ensemble::of(&runs));
+    }
+    for ((variant, m), ensemble) in variants.into_iter().zip(measured).zip(ensembles) {
         let errors = Errors::between(&m, &reference);
         progress(&format!(
             "{} {}: {} steps, b_f/b0 = {:.4}, error {:.2e}, {:.3} s{}",
@@ -584,6 +673,7 @@ pub fn run_accuracy(
             parameter: variant.parameter,
             measurement: m,
             errors,
+            ensemble,
         });
     }
     Ok(AccuracyStudy {
@@ -595,11 +685,12 @@ pub fn run_accuracy(
 }
 
 /// Header of `accuracy.csv`.
-pub const ACCURACY_HEADER: [&str; 28] = [
+pub const ACCURACY_HEADER: [&str; 33] = [
     "family",
     "label",
     "parameter",
     "status",
+    "failure",
     "wall_seconds",
     "wall_min",
     "wall_max",
@@ -624,6 +715,10 @@ pub const ACCURACY_HEADER: [&str; 28] = [
     "invariant_violations",
     "noise_growth_error",
     "noise_ks",
+    "ensemble_seeds",
+    "ensemble_failed",
+    "ensemble_growth_mean",
+    "ensemble_growth_se",
 ];
 
 /// Write `accuracy.csv` and `noise.csv` into `dir` (the charts: [`super::write::write_accuracy`]).
@@ -643,6 +738,8 @@ pub fn write_accuracy_tables(dir: &Path, study: &AccuracyStudy) -> anyhow::Resul
                 r.label.clone(),
                 num(r.parameter),
                 if r.failed() { "failed" } else { "ok" }.into(),
+                // A CSV field: the message's commas become semicolons.
+                m.failure.as_deref().unwrap_or("").replace(',', ";"),
                 num(m.wall_seconds),
                 num(m.wall_min),
                 num(m.wall_max),
@@ -667,6 +764,13 @@ pub fn write_accuracy_tables(dir: &Path, study: &AccuracyStudy) -> anyhow::Resul
                 m.invariant_violations.to_string(),
                 num(level.growth),
                 num(level.ks),
+                r.ensemble.as_ref().map_or(1, |e| e.seeds).to_string(),
+                r.ensemble.as_ref().map_or(0, |e| e.failed).to_string(),
+                num(r
+                    .ensemble
+                    .as_ref()
+                    .map_or(m.growth_ratio, |e| e.growth_mean)),
+                num(r.ensemble.as_ref().map_or(f64::NAN, |e| e.growth_se)),
             ]
         })
         .collect();

@@ -73,6 +73,52 @@ pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
     front
 }
 
+/// One line per failed run (label, then where and why it stopped), for the note under
+/// a chart: a failed run is no point on it, but it is not left out silently either.
+fn failed_lines(study: &AccuracyStudy) -> Vec<String> {
+    study
+        .rows
+        .iter()
+        .filter(|r| r.failed())
+        .map(|r| {
+            let why = r.measurement.failure.as_deref().unwrap_or("");
+            // Keep a line within the figure's width.
+            let why: String = if why.chars().count() > 110 {
+                why.chars().take(107).chain("...".chars()).collect()
+            } else {
+                why.to_string()
+            };
+            format!("failed, not drawn: {} — {why}", r.label)
+        })
+        .collect()
+}
+
+/// Split `area` into the chart and, below it, a note listing the failed runs.
+fn with_failure_note<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    study: &AccuracyStudy,
+) -> anyhow::Result<DrawingArea<DB, Shift>>
+where
+    DB::ErrorType: 'static,
+{
+    let lines = failed_lines(study);
+    if lines.is_empty() {
+        return Ok(area.clone());
+    }
+    let height = area.dim_in_pixel().1 as i32;
+    let note_height = 8 + 18 * lines.len() as i32;
+    let (chart, note) = area.split_vertically(height - note_height);
+    for (k, line) in lines.iter().enumerate() {
+        note.draw_text(
+            line,
+            &text(13).color(&RGBColor(180, 0, 0)),
+            (12, 4 + 18 * k as i32),
+        )
+        .map_err(err)?;
+    }
+    Ok(chart)
+}
+
 struct AccuracyError<'a> {
     study: &'a AccuracyStudy,
 }
@@ -223,6 +269,7 @@ impl Figure for AccuracyError<'_> {
                 (10, 8),
             )
             .map_err(err)?;
+        let body = with_failure_note(&body, self.study)?;
         let panels = body.split_evenly((1, 2));
         let level = self.study.noise.level;
         self.panel(
@@ -253,6 +300,7 @@ impl Figure for AccuracyGrowth<'_> {
         DB::ErrorType: 'static,
     {
         let s = self.study;
+        let area = &with_failure_note(area, s)?;
         let rows: Vec<&Row> = s.rows.iter().filter(|r| !r.failed()).collect();
         let walls: Vec<f64> = rows
             .iter()
@@ -262,9 +310,19 @@ impl Figure for AccuracyGrowth<'_> {
             .iter()
             .fold((f64::INFINITY, 0.0_f64), |(a, b), &w| (a.min(w), b.max(w)));
         let (x0, x1) = (wmin / 2.0, wmax * 2.0);
+        // Ensemble rows reach mean ± 1 s.e. as well as their own seed's value.
+        let ensemble_ends = rows
+            .iter()
+            .filter_map(|r| r.ensemble.as_ref())
+            .flat_map(|e| {
+                [e.growth_mean - e.growth_se, e.growth_mean + e.growth_se]
+                    .into_iter()
+                    .filter(|g| g.is_finite())
+            });
         let (mut g0, mut g1) = rows
             .iter()
             .map(|r| r.measurement.growth_ratio)
+            .chain(ensemble_ends)
             .chain(s.target_growth)
             .chain([
                 s.noise.growth_mean - 2.0 * s.noise.growth_std,
@@ -343,6 +401,34 @@ impl Figure for AccuracyGrowth<'_> {
                 .legend(move |(x, y)| {
                     Circle::new((x + 7, y), 5, ShapeStyle::from(&color).filled())
                 });
+        }
+        // Settings run over several seeds: their mean ± 1 s.e. as an error bar (ticks at
+        // mean − s.e., mean, mean + s.e.) at the same wall time as their own seed's dot.
+        let ensembles: Vec<(f64, f64, f64)> = rows
+            .iter()
+            .zip(&walls)
+            .filter_map(|(r, &w)| r.ensemble.as_ref().map(|e| (w, e.growth_mean, e.growth_se)))
+            .filter(|(_, m, se)| m.is_finite() && se.is_finite())
+            .collect();
+        if !ensembles.is_empty() {
+            let seeds = rows
+                .iter()
+                .filter_map(|r| r.ensemble.as_ref())
+                .map(|e| e.seeds)
+                .max()
+                .unwrap_or(0);
+            let style = ShapeStyle::from(&BLACK).stroke_width(2);
+            chart
+                .draw_series(
+                    ensembles
+                        .iter()
+                        .map(|&(w, m, se)| ErrorBar::new_vertical(w, m - se, m, m + se, style, 10)),
+                )
+                .map_err(err)?
+                .label(format!(
+                    "unconverged settings: mean ± s.e. over {seeds} seeds"
+                ))
+                .legend(move |(x, y)| PathElement::new([(x + 7, y - 6), (x + 7, y + 6)], style));
         }
         chart
             .configure_series_labels()

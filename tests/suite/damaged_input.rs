@@ -389,16 +389,28 @@ fn inspect_of_a_killed_recording_says_what_is_readable_and_how_to_resume() {
             .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cut.mcap");
-    std::fs::write(&path, &bytes[..bytes.len() * 2 / 3]).unwrap();
     std::fs::write(dir.path().join("cut.restart"), b"").unwrap();
-    let out = agglo_within(&["inspect", "cut.mcap"], dir.path(), LIMIT);
-    assert!(out.ok(), "{}", out.stderr);
-    for words in ["NOT finalised", "are readable", "--resume", "cut.restart"] {
-        assert!(
-            out.stdout.contains(words),
-            "no `{words}` in:\n{}",
-            out.stdout
-        );
+    // Cut anywhere, and cut just after a record's opcode whose length the writer had not
+    // filled in (all ones: the mcap reader's "length exceeds limit: 18446744073709551615").
+    let cut = &bytes[..bytes.len() * 2 / 3];
+    let mut unwritten_length = bytes[..bytes.len() / 2].to_vec();
+    unwritten_length.push(0x06);
+    unwritten_length.extend([0xff; 8]);
+    for file in [cut.to_vec(), unwritten_length] {
+        std::fs::write(&path, &file).unwrap();
+        let out = agglo_within(&["inspect", "cut.mcap"], dir.path(), LIMIT);
+        assert!(out.ok(), "{}", out.stderr);
+        for words in ["NOT finalised", "are readable", "--resume", "cut.restart"] {
+            assert!(
+                out.stdout.contains(words),
+                "no `{words}` in:\n{}",
+                out.stdout
+            );
+        }
+        // In words, not the parser's.
+        for raw in ["exceeds limit", "18446744073709551615"] {
+            assert!(!out.stdout.contains(raw), "`{raw}` in:\n{}", out.stdout);
+        }
     }
 }
 

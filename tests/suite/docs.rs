@@ -389,3 +389,69 @@ fn files_under(dir: &Path) -> Vec<PathBuf> {
     }
     files
 }
+
+/// A shell line in the docs that writes into a directory under `~` comes after a
+/// `mkdir -p` of that directory in the same block: on a fresh home the directory is not
+/// there (`agglo completions bash > ~/.local/share/bash-completion/completions/agglo`
+/// failed so).
+#[test]
+fn files_written_under_home_have_their_directory_made_first() {
+    let mut checked = 0;
+    let mut missing = Vec::new();
+    for page in pages() {
+        let text = std::fs::read_to_string(&page).unwrap();
+        let name = page.strip_prefix(root()).unwrap().display().to_string();
+        for (info, lines) in split(&text).1 {
+            if !matches!(info.as_str(), "sh" | "bash" | "shell" | "console") {
+                continue;
+            }
+            let mut made: Vec<String> = Vec::new();
+            for line in lines {
+                let line = line.split(" #").next().unwrap_or("").trim();
+                if let Some(dirs) = line.strip_prefix("mkdir -p ") {
+                    made.extend(dirs.split_whitespace().map(String::from));
+                }
+                let Some(target) = line.split("> ").nth(1).map(str::trim) else {
+                    continue;
+                };
+                let Some(dir) = target.rsplit_once('/').map(|(d, _)| d) else {
+                    continue;
+                };
+                if !dir.starts_with('~') {
+                    continue;
+                }
+                checked += 1;
+                if !made.iter().any(|m| m == dir) {
+                    missing.push(format!("{name}: `{line}`: no `mkdir -p {dir}` before it"));
+                }
+            }
+        }
+    }
+    assert!(checked >= 3, "only {checked} writes under ~ found");
+    assert!(missing.is_empty(), "{}", missing.join("\n"));
+}
+
+/// The README's install block holds the two commands CI runs first, as written
+/// (`.ci/readme_commands` reads them): the main job on a shipped scenario, then the
+/// tests. The second must be the test command `.ci/run` relies on.
+#[test]
+fn the_readme_install_block_holds_the_two_commands_ci_runs() {
+    let out = std::process::Command::new("bash")
+        .arg(root().join(".ci/readme_commands"))
+        .arg(root().join("README.md"))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let commands: Vec<&str> = text.lines().collect();
+    assert_eq!(commands.len(), 2, "{commands:?}");
+    let main_job = agglo_arguments(commands[0]).expect("the first command runs agglo");
+    assert_eq!(main_job[1], "run");
+    assert!(
+        root().join(&main_job[2]).is_file(),
+        "a shipped scenario: {}",
+        main_job[2]
+    );
+    agglo::cli_args::Cli::try_parse_from(&main_job).unwrap();
+    assert_eq!(commands[1], "cargo test && python/test.sh");
+}

@@ -103,7 +103,7 @@ fn set_radius_over_a_size_ratio_says_how() {
     ]);
     let (stdout, stderr) = text(&out);
     assert!(out.status.success(), "{stderr}");
-    assert!(stdout.contains("b0 = 1.0000e-4 m"), "{stdout}");
+    assert!(stdout.contains("b0 = 1e-4 m"), "{stdout}");
 }
 
 #[test]
@@ -249,4 +249,41 @@ fn only_an_unfinished_run_says_continue_with_resume() {
         "{stdout}"
     );
     assert!(stderr.contains("of 4e-3 s"), "{stderr}");
+}
+
+/// Second first day (issue 42, item 5): a setting of where outputs go leaves the
+/// scenario's name (and so the restart file's) alone; `validate` prints b0 to every digit
+/// (starting from a table needs it to ~1e-9) and says the fixed part of its memory
+/// figure; `study readings --list` needs no `--out`.
+#[test]
+fn output_settings_keep_the_name_and_validate_prints_what_a_table_needs() {
+    let base = Scenario::load(&root().join("scenarios/quick_demo.json")).unwrap();
+    let set = base
+        .with_settings(&["output.restart.every=1e-3".into()])
+        .unwrap();
+    assert_eq!(set.name, base.name);
+    assert_eq!(set.file_stem(), "quick_demo");
+    // A physics setting still names the variant.
+    let physics = base.with_settings(&["time.end=2e-3".into()]).unwrap();
+    assert!(physics.name.contains("time.end=2e-3"), "{}", physics.name);
+
+    let out = validate(&[]);
+    let (stdout, stderr) = text(&out);
+    assert!(out.status.success(), "{stderr}");
+    let b0: f64 = stdout
+        .split("b0 = ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no b0 in {stdout}"));
+    assert_eq!(b0, base.primary_radius(), "b0 to every digit: {stdout}");
+    assert!(stdout.contains("MB fixed + "), "{stdout}");
+
+    let list = agglo()
+        .args(["study", "readings", &quick_demo(), "--list"])
+        .output()
+        .unwrap();
+    let (stdout, stderr) = text(&list);
+    assert!(list.status.success(), "{stderr}");
+    assert!(stdout.starts_with("baseline"), "{stdout}");
 }

@@ -194,8 +194,14 @@ fn wait(child: Child) -> std::process::Output {
 }
 
 /// `agglo run quick_demo` in `dir` with relative output paths (so that two runs record
-/// the same command line), plus `extra` flags.
+/// the same command line), plus `extra` flags. A live run closes as soon as it ends
+/// (`--live-linger 0`) unless `extra` sets the linger: these tests read until the server
+/// closes.
 fn run_in(dir: &Path, extra: &[&str]) -> Child {
+    let mut extra = extra.to_vec();
+    if extra.contains(&"--live") && !extra.contains(&"--live-linger") {
+        extra.extend(["--live-linger", "0"]);
+    }
     Command::new(BIN)
         .current_dir(dir)
         .arg("run")
@@ -388,6 +394,122 @@ fn a_client_offering_another_protocol_is_refused() {
     let _ = child.wait();
 }
 
+/// A run that ends with a client connected tells it so by a status (info, not an error)
+/// and keeps its final state served: a panel that subscribes only after the end still
+/// gets the last frame; when the client disconnects the process exits at once.
+#[test]
+fn a_finished_run_keeps_its_final_state_served_until_the_client_leaves() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let addr = format!("127.0.0.1:{port}");
+    let mut child = run_in(
+        dir.path(),
+        &["--live", &addr, "--live-wait", "--live-linger", "50"],
+    );
+    let mut ws = connect(port, &mut child);
+    let channels = advertised(&mut ws, &["/particles", "/stats"]);
+    subscribe(&mut ws, &channels, &["/stats"]);
+    // Read until the status that the run has ended.
+    let start = Instant::now();
+    let status = loop {
+        assert!(start.elapsed() < PATIENCE, "no status that the run ended");
+        if let Some(Message::Text(text)) = read(&mut ws) {
+            let v: Value = serde_json::from_str(text.as_str()).unwrap();
+            if v["op"] == "status" {
+                break v;
+            }
+        }
+    };
+    assert_eq!(
+        status["level"], 0,
+        "info, not a warning or an error: {status}"
+    );
+    let message = status["message"].as_str().unwrap();
+    assert!(
+        message.contains("run has ended") && message.contains("run finished"),
+        "{message}"
+    );
+    // Every file is written before the wait.
+    assert!(dir.path().join("summary.json").is_file());
+    assert!(dir.path().join("final.csv").is_file());
+    let bodies = summary(dir.path())["final_bodies"].as_u64().unwrap();
+    // A late subscriber to /particles still receives the final cloud.
+    ws.send(Message::text(
+        json!({ "op": "subscribe", "subscriptions": [{ "id": 7, "channelId": channels["/particles"].0 }] })
+            .to_string(),
+    ))
+    .unwrap();
+    let start = Instant::now();
+    let update = loop {
+        assert!(start.elapsed() < PATIENCE, "no final frame after the end");
+        if let Some(Message::Binary(b)) = read(&mut ws)
+            && u32::from_le_bytes(b[1..5].try_into().unwrap()) == 7
+        {
+            break SceneUpdate::decode(&b[13..]).unwrap();
+        }
+    };
+    assert_eq!(update.entities.len() as u64, bodies);
+    assert!(child.try_wait().unwrap().is_none(), "still serving");
+    // Leaving ends the wait: well before the 50 s linger.
+    let left = Instant::now();
+    ws.close(None).unwrap();
+    while ws.read().is_ok() {}
+    let out = wait(child);
+    assert!(out.status.success());
+    assert!(
+        left.elapsed() < Duration::from_secs(20),
+        "exited {:?} after the client left",
+        left.elapsed()
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("serving its final state"), "{stderr}");
+}
+
+/// `--live-pace` only waits: T / rate of wall time at least, the same outputs.
+#[test]
+fn a_paced_run_takes_its_time_and_changes_nothing() {
+    let paced_dir = tempfile::tempdir().unwrap();
+    let plain_dir = tempfile::tempdir().unwrap();
+    let end: f64 = 0.002; // [s]; quick_demo runs this in milliseconds unpaced
+    let rate = end / 1.5; // simulated seconds per second: at least 1.5 s of wall time
+    let port = free_port();
+    let start = Instant::now();
+    let paced = wait(run_in(
+        paced_dir.path(),
+        &[
+            "--set",
+            &format!("time.end={end}"),
+            "--live",
+            &format!("127.0.0.1:{port}"),
+            "--live-pace",
+            &rate.to_string(),
+        ],
+    ));
+    let wall = start.elapsed();
+    assert!(
+        paced.status.success(),
+        "{}",
+        String::from_utf8_lossy(&paced.stderr)
+    );
+    assert!(
+        wall >= Duration::from_secs_f64(1.5),
+        "paced run took {wall:?}"
+    );
+    let plain = wait(run_in(
+        plain_dir.path(),
+        &["--set", &format!("time.end={end}")],
+    ));
+    assert!(plain.status.success());
+    assert_eq!(summary(paced_dir.path()), summary(plain_dir.path()));
+    for file in ["final.csv", "run.mcap"] {
+        assert!(
+            std::fs::read(paced_dir.path().join(file)).unwrap()
+                == std::fs::read(plain_dir.path().join(file)).unwrap(),
+            "{file} differs with --live-pace"
+        );
+    }
+}
+
 #[test]
 fn a_large_cloud_shows_a_subset_and_says_so() {
     let dir = tempfile::tempdir().unwrap();
@@ -458,6 +580,7 @@ fn a_client_that_stops_reading_never_holds_the_run_up() {
         ])
         .args(["--live", &format!("127.0.0.1:{port}"), "--live-wait"])
         .args(["--live-rate", "1000", "--live-bodies", "10000"])
+        .args(["--live-linger", "0"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

@@ -562,3 +562,54 @@ fn recording_metadata_carries_the_pipeline_and_the_box() {
     );
     assert!(text.contains("fragmentation off: γ = ∞"), "{text}");
 }
+
+/// Snapshots at the default rate fall at the first step end past each multiple of T/300:
+/// never two in one interval, and fewer than 301 when steps grow long. The count for
+/// `paper2004_best` is the one docs/foxglove.md quotes.
+#[test]
+fn default_snapshots_follow_the_crossings_and_the_docs_count_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap_path = dir.path().join("p04.mcap");
+    let out = agglo(&[
+        "run",
+        s(&scenarios_dir().join("paper2004_best.json")),
+        "--out",
+        s(&mcap_path),
+        "-q",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let buf = std::fs::read(&mcap_path).unwrap();
+    let times: Vec<f64> = messages(&buf)
+        .into_iter()
+        .filter(|(topic, _, _)| topic == "/stats")
+        .map(|(_, _, data)| {
+            let v: serde_json::Value = serde_json::from_slice(&data).unwrap();
+            v["time"].as_f64().unwrap()
+        })
+        .collect();
+    let interval = 0.01 / 300.0; // T / 300 [s]
+    let cells: Vec<f64> = times.iter().map(|t| (t / interval).floor()).collect();
+    // Every snapshot but the last (the final state, always recorded) opens a new interval.
+    for pair in cells[..cells.len() - 1].windows(2) {
+        assert!(pair[1] > pair[0], "two snapshots in one interval: {pair:?}");
+    }
+    let doc =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/foxglove.md"))
+            .unwrap();
+    let quoted: usize = doc
+        .split("`paper2004_best` records ")
+        .nth(1)
+        .and_then(|t| t.split(|c: char| !c.is_ascii_digit()).next())
+        .and_then(|n| n.parse().ok())
+        .expect("docs/foxglove.md quotes the snapshot count of paper2004_best");
+    assert_eq!(
+        times.len(),
+        quoted,
+        "docs/foxglove.md says `paper2004_best` records {quoted} snapshots: update it"
+    );
+    assert!(times.len() < 301);
+}

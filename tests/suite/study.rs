@@ -97,7 +97,33 @@ fn accuracy_study_runs_end_to_end_and_writes_its_csvs() {
     }
     for r in &rows {
         assert!(f(r, "wall_seconds") >= 0.0 && f(r, "steps") > 0.0, "{r:?}");
+        // A run is a result only when it is sound: no invariant violations, finite
+        // observables; a failed one says why.
+        match r["status"].as_str() {
+            "ok" => {
+                assert_eq!(f(r, "invariant_violations"), 0.0, "{r:?}");
+                assert!(f(r, "growth_ratio").is_finite(), "{r:?}");
+                assert!(f(r, "mean_temperature").is_finite(), "{r:?}");
+                assert!(r["failure"].is_empty(), "{r:?}");
+            }
+            "failed" => assert!(!r["failure"].is_empty(), "a failure without a why: {r:?}"),
+            other => panic!("status {other}"),
+        }
+        // A setting that left impacts unconverged is an ensemble over the study's seeds.
+        if r["status"] == "ok" && f(r, "unconverged") > 0.0 {
+            assert_eq!(f(r, "ensemble_seeds"), 2.0, "{r:?}");
+            let (mean, se) = (f(r, "ensemble_growth_mean"), f(r, "ensemble_growth_se"));
+            assert!(mean.is_finite() && mean >= 1.0, "{r:?}");
+            assert!(se.is_finite() || f(r, "ensemble_failed") > 0.0, "{r:?}");
+        } else {
+            assert_eq!(f(r, "ensemble_seeds"), 1.0, "{r:?}");
+        }
     }
+    assert!(
+        rows.iter()
+            .any(|r| r["status"] == "ok" && f(r, "unconverged") > 0.0),
+        "no unconverged setting: the ensemble rows went untested"
+    );
 
     // Fixed-Δt ladder, fine to coarse. One seed is one realisation of a chaotic system,
     // so intermediate rungs scatter within the noise; the monotone cases are the ends of

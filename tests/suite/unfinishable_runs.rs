@@ -174,7 +174,7 @@ fn validate_prints_the_memory_estimate() {
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
-        text.contains("memory: about 16 MB for 300 bodies (650 B per body)"),
+        text.contains("memory: about 16 MB for 300 bodies (16 MB fixed + 650 B per body)"),
         "{text}"
     );
 }

@@ -7,9 +7,9 @@ use super::*;
 pub struct ReadingsArgs {
     /// Scenario file (JSON).
     pub scenario: std::path::PathBuf,
-    /// Output directory.
-    #[arg(long)]
-    pub out: std::path::PathBuf,
+    /// Output directory (not needed with --list).
+    #[arg(long, required_unless_present = "list")]
+    pub out: Option<std::path::PathBuf>,
     /// Seeds per reading (the scenario's seed and the next ones), ≥ 2 for an error bar.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
     pub seeds: u32,
@@ -68,9 +68,13 @@ pub fn run_cli(args: &ReadingsArgs, workers: &crate::farm::Workers) -> anyhow::R
         target_growth: args.target_growth,
         max_steps: args.max_steps,
     };
+    let out = args
+        .out
+        .as_ref()
+        .ok_or_else(|| anyhow::anyhow!("--out: the output directory is required"))?;
     let study = run_readings(&base, &options, workers, |line| eprintln!("{line}"))?;
-    write_readings(&args.out, &study)?;
+    write_readings(out, &study)?;
     print!("{}", markdown(&study));
-    println!("wrote {}", args.out.join("readings.csv").display());
+    println!("wrote {}", out.join("readings.csv").display());
     Ok(())
 }

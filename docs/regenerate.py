@@ -1,0 +1,337 @@
+#!/usr/bin/env python3
+"""Every figure the docs quote from a deterministic run, made by one command.
+
+    python3 docs/regenerate.py            # regenerate the files under docs/ in place
+    python3 docs/regenerate.py --check    # run again, compare with what is committed (CI)
+    python3 docs/regenerate.py --check --only study-p04 readme-report
+
+Runs the release binary (target/release/agglo, built by the README's first command;
+--agglo or $AGGLO_BIN to use another). In --check mode the outputs go to a temporary
+directory and their deterministic content (statuses, steps, counts, growth — every column
+but wall times) must equal the committed files; a change that moves a documented number
+fails here until the docs are regenerated with this script (then rewrite the prose that
+quotes the moved numbers: docs/studies.md, docs/inverse.md, README.md). Tasks marked slow
+run only with --full (their commands are still the source of their files).
+
+Standard library only: CI runs it with the machine's python3.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import os
+import pathlib
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+# Columns that hold wall-clock times (or derive from them): never compared.
+TIMING_COLUMNS = {"wall_seconds", "wall_min", "wall_max", "seconds", "wall"}
+
+
+class Task:
+    """One documented output: how to make it and which files it leaves under docs/."""
+
+    def __init__(self, name, make, files, slow=False, what="", needs_agglo=True):
+        self.name = name
+        self.needs_agglo = needs_agglo
+        self.make = make  # (agglo, out_dir, check) -> None; writes files under out_dir
+        self.files = files  # paths relative to docs/ (and README.md for the report)
+        self.slow = slow
+        self.what = what
+
+
+def run(args, cwd=ROOT, **kw):
+    """Run a command; its failure stops the script with its output."""
+    shown = " ".join(str(a) for a in args)
+    print(f"+ {shown}", flush=True)
+    done = subprocess.run([str(a) for a in args], cwd=cwd, capture_output=True, text=True, **kw)
+    if done.returncode != 0:
+        sys.stderr.write(done.stdout + done.stderr)
+        raise SystemExit(f"failed ({done.returncode}): {shown}")
+    return done.stdout
+
+
+# ---- the tasks -----------------------------------------------------------------------
+
+
+def study_accuracy(scenario, subdir, extra):
+    def make(agglo, out, check):
+        # Timed repeats only matter for the wall times, which --check does not compare.
+        repeats = ["--repeats", "1"] if check else []
+        run([agglo, "study", "accuracy", f"scenarios/{scenario}", "--out",
+             out / "study" / subdir, *extra, *[a for a in repeats if "--repeats" not in extra]])
+    return make
+
+
+def study_stability(agglo, out, check):
+    run([agglo, "study", "stability", "--out", out / "study" / "stability"])
+
+
+README_REPORT_SCENARIO = "scenarios/paper2004_best.json"
+
+
+def readme_report(agglo, out, check):
+    text = run([agglo, "run", README_REPORT_SCENARIO])
+    (out / "results").mkdir(parents=True, exist_ok=True)
+    (out / "results" / "paper2004_best_report.txt").write_text(text)
+
+
+# The peer clouds of README.md's and docs/speed.md's tables (T = 0.01 s; the 1e6 clouds
+# take minutes each and are not here).
+PEER_SCENES = ["peer_merge_1000", "peer_merge_10000", "peer_merge_100000",
+               "peer_bounce_1000", "peer_bounce_10000"]
+PEER_SCENES_SLOW = ["peer_bounce_100000"]
+
+
+def peers(scenes, name):
+    def make(agglo, out, check):
+        rows = []
+        with tempfile.TemporaryDirectory() as tmp:
+            for scene in scenes:
+                summary = pathlib.Path(tmp) / f"{scene}.json"
+                run([agglo, "run", f"benches/peers/scenes/{scene}.json", "--summary", summary,
+                     "-q"])
+                import json
+                s = json.loads(summary.read_text())
+                c = s["counters"]
+                rows.append([scene, s["initial_bodies"], s["final_bodies"], c["impacts"],
+                             c["bonds"], c["bounces"], s["steps"]])
+        (out / "results").mkdir(parents=True, exist_ok=True)
+        with open(out / "results" / name, "w", newline="") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(["scene", "initial_bodies", "final_bodies", "impacts", "bonds",
+                        "bounces", "steps"])
+            w.writerows(rows)
+    return make
+
+
+def scan(args, subdir, stem):
+    def make(agglo, out, check):
+        target = out / "results" / "inverse" / subdir
+        with tempfile.TemporaryDirectory() as tmp:
+            run([agglo, "scan", *args, "--out", tmp, "-q"])
+            target.mkdir(parents=True, exist_ok=True)
+            for ext in ["csv", "png"]:
+                shutil.copy(pathlib.Path(tmp) / f"scan.{ext}", target / f"{stem}.{ext}")
+    return make
+
+
+P02_SCAN = ["scenarios/paper2002_inverse.json", "--gene", "box.half_width"]
+
+SECONDS = re.compile(r"in [0-9.]+ s$", re.M)
+
+
+def tutorial(agglo, out, check):
+    """docs/python_tutorial.py with this interpreter (python/test.sh runs it in the
+    test environment, where `import agglo` works); its one wall time masked."""
+    text = run([sys.executable, "docs/python_tutorial.py"])
+    (out / "results").mkdir(parents=True, exist_ok=True)
+    (out / "results" / "python_tutorial.txt").write_text(SECONDS.sub("in X s", text))
+
+TASKS = [
+    Task("study-accuracy",
+         study_accuracy("study_accuracy.json", "accuracy", []),
+         ["study/accuracy/accuracy.csv", "study/accuracy/noise.csv"],
+         what="docs/studies.md: the study scene's ladder"),
+    Task("study-p04",
+         study_accuracy("paper2004_best.json", "p04", ["--repeats", "1", "--target-growth", "3.23"]),
+         ["study/p04/accuracy.csv", "study/p04/noise.csv"],
+         what="docs/studies.md: P04's ladder and its table"),
+    Task("study-stability", study_stability,
+         ["study/stability/tunnelling_kinematic.csv", "study/stability/tunnelling_runs.csv"],
+         what="docs/studies.md: missed collisions, pair and cooling maps"),
+    Task("readme-report", readme_report, ["results/paper2004_best_report.txt"],
+         what="README.md: what a run prints"),
+    Task("peers", peers(PEER_SCENES, "peers.csv"), ["results/peers.csv"],
+         what="README.md and docs/speed.md: collisions of the peer clouds"),
+    Task("peers-slow", peers(PEER_SCENES_SLOW, "peers_slow.csv"), ["results/peers_slow.csv"],
+         slow=True, what="docs/speed.md: the 1e5 bounce cloud (≈ 100 s)"),
+    Task("scan-p02",
+         scan([*P02_SCAN, "--from", "1e-6", "--to", "1e-2", "--points", "25", "--log"],
+              "p02_d_sweep", "scan"),
+         ["results/inverse/p02_d_sweep/scan.csv"],
+         what="docs/inverse.md, docs/results/inverse: b_f/b0 against D"),
+    Task("scan-p02-fine",
+         scan([*P02_SCAN, "--from", "6e-6", "--to", "1.4e-5", "--points", "17"],
+              "p02_d_sweep", "scan_fine"),
+         ["results/inverse/p02_d_sweep/scan_fine.csv"],
+         what="docs/results/inverse: the fine D grid"),
+    Task("tutorial", tutorial, ["results/python_tutorial.txt"], slow=True, needs_agglo=False,
+         what="docs/python.md: what docs/python_tutorial.py prints (needs `import agglo`; "
+              "python/test.sh runs it)"),
+]
+
+
+# ---- comparing -----------------------------------------------------------------------
+
+
+def read_table(path: pathlib.Path):
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    return rows[0], rows[1:]
+
+
+def table_differences(committed: pathlib.Path, fresh: pathlib.Path) -> list[str]:
+    """Cells that differ, timing columns aside; every other cell compared as text (the
+    tables print floats round-trip exact, so equal text is equal bits)."""
+    head_a, rows_a = read_table(committed)
+    head_b, rows_b = read_table(fresh)
+    if head_a != head_b:
+        return [f"columns differ: {head_a} vs {head_b}"]
+    if len(rows_a) != len(rows_b):
+        return [f"{len(rows_a)} rows committed, {len(rows_b)} now"]
+    out = []
+    for k, (a, b) in enumerate(zip(rows_a, rows_b)):
+        for name, x, y in zip(head_a, a, b):
+            if name not in TIMING_COLUMNS and x != y:
+                label = a[1] if len(a) > 1 else a[0]
+                out.append(f"row {k + 1} ({label}): {name} = {x} committed, {y} now")
+    return out
+
+
+WALL = re.compile(r"[0-9.]+ s wall")
+
+
+def report_differences(committed: pathlib.Path, fresh: pathlib.Path) -> list[str]:
+    """Printed text, its wall time aside."""
+    a = WALL.sub("X s wall", committed.read_text())
+    b = WALL.sub("X s wall", fresh.read_text())
+    if a == b:
+        return []
+    return ["the report differs:\n--- committed\n" + a + "--- now\n" + b]
+
+
+def readme_quotes_the_report(report: pathlib.Path) -> list[str]:
+    """README.md's 'What a run prints' block is the committed report, wall time aside."""
+    readme = (ROOT / "README.md").read_text()
+    marker = f"$ agglo run {README_REPORT_SCENARIO}\n"
+    if marker not in readme:
+        return [f"README.md has no `{marker.strip()}` block"]
+    block = readme.split(marker, 1)[1].split("```", 1)[0]
+    want = WALL.sub("X s wall", report.read_text())
+    have = WALL.sub("X s wall", block)
+    if want != have:
+        return ["README.md's report is not the run's:\n--- README\n" + have + "--- run\n" + want]
+    return []
+
+
+def pipeline_md_quotes_validate(agglo: pathlib.Path) -> list[str]:
+    """docs/pipeline.md's `agglo validate` block is what validate prints (the memory
+    line, which depends on the machine, aside)."""
+    printed = run([agglo, "validate", README_REPORT_SCENARIO])
+    printed = "".join(l + "\n" for l in printed.splitlines() if not l.startswith("memory:"))
+    page = (ROOT / "docs" / "pipeline.md").read_text()
+    marker = f"$ agglo validate {README_REPORT_SCENARIO}\n"
+    if marker not in page:
+        return [f"docs/pipeline.md has no `{marker.strip()}` block"]
+    block = page.split(marker, 1)[1].split("```", 1)[0]
+    if block != printed:
+        return ["docs/pipeline.md's validate block is not what validate prints:\n--- page\n"
+                + block + "--- now\n" + printed]
+    return []
+
+
+def docs_quote_the_peer_counts(table: pathlib.Path) -> list[str]:
+    """Each collision count of the peer clouds appears, as README.md and docs/speed.md
+    write it (thin-space thousands), in both pages' tables."""
+    head, rows = read_table(table)
+    col = {n: i for i, n in enumerate(head)}
+    out = []
+    pages = {p: (ROOT / p).read_text() for p in ["README.md", "docs/speed.md"]}
+    for r in rows:
+        scene = r[col["scene"]]
+        count = r[col["bonds"]] if "merge" in scene else r[col["bounces"]]
+        written = f"{int(count):,}".replace(",", " ")
+        for page, text in pages.items():
+            if page == "README.md" and scene.endswith("100000") and "bounce" in scene:
+                continue
+            if written not in text:
+                out.append(f"{page} does not quote {scene}'s {written}")
+    return out
+
+
+def compare(task: Task, fresh_docs: pathlib.Path, agglo: pathlib.Path) -> list[str]:
+    out = []
+    for rel in task.files:
+        committed = ROOT / "docs" / rel
+        fresh = fresh_docs / rel
+        if not committed.exists():
+            out.append(f"docs/{rel} is not committed (run docs/regenerate.py)")
+            continue
+        if rel.endswith(".csv"):
+            out += [f"docs/{rel}: {d}" for d in table_differences(committed, fresh)]
+        else:
+            out += [f"docs/{rel}: {d}" for d in report_differences(committed, fresh)]
+    if task.name == "readme-report":
+        out += readme_quotes_the_report(ROOT / "docs" / task.files[0])
+        out += pipeline_md_quotes_validate(agglo)
+    if task.name == "peers":
+        out += docs_quote_the_peer_counts(ROOT / "docs" / task.files[0])
+    if task.name == "tutorial":
+        out += python_md_quotes_the_fits(ROOT / "docs" / task.files[0])
+    return out
+
+
+def python_md_quotes_the_fits(printed: pathlib.Path) -> list[str]:
+    """docs/python.md quotes the tutorial's fitted exponents line for line."""
+    page = (ROOT / "docs" / "python.md").read_text()
+    fits = [line for line in printed.read_text().splitlines() if " ~ t^(" in line]
+    if not fits:
+        return ["the tutorial printed no fit (`N ~ t^(...)`)"]
+    return [f"docs/python.md does not quote the tutorial's `{line.strip()}`"
+            for line in fits if line.strip() not in page]
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--check", action="store_true",
+                   help="compare a fresh run with the committed files instead of writing")
+    p.add_argument("--full", action="store_true", help="also the slow tasks")
+    p.add_argument("--only", nargs="+", metavar="TASK", help="just these tasks")
+    p.add_argument("--agglo", default=os.environ.get("AGGLO_BIN"),
+                   help="the agglo binary (default target/release/agglo)")
+    p.add_argument("--list", action="store_true", help="list the tasks")
+    a = p.parse_args(argv)
+    if a.list:
+        for t in TASKS:
+            print(f"{t.name:<18} {'(slow) ' if t.slow else ''}{t.what}")
+        return 0
+    names = {t.name for t in TASKS}
+    for n in a.only or []:
+        if n not in names:
+            p.error(f"--only {n}: no such task; the tasks: {', '.join(sorted(names))}")
+    tasks = [t for t in TASKS
+             if (a.only and t.name in a.only) or (not a.only and (a.full or not t.slow))]
+    agglo = pathlib.Path(a.agglo) if a.agglo else ROOT / "target" / "release" / "agglo"
+    if any(t.needs_agglo for t in tasks) and not agglo.is_file():
+        run(["cargo", "build", "--release", "--bin", "agglo"])
+    problems = []
+    with tempfile.TemporaryDirectory() as tmp:
+        out = pathlib.Path(tmp) if a.check else ROOT / "docs"
+        for t in tasks:
+            t.make(agglo.resolve(), out, a.check)
+            if a.check:
+                found = compare(t, out, agglo.resolve())
+                print(f"{t.name}: {'ok' if not found else f'{len(found)} differences'}")
+                problems += found
+    if problems:
+        print("\n".join(problems), file=sys.stderr)
+        print(f"\n{len(problems)} documented figures differ from what the binary makes now: "
+              "regenerate with `python3 docs/regenerate.py` and update the prose that quotes "
+              "them.", file=sys.stderr)
+        return 1
+    if not a.check:
+        print("regenerated; now update the prose that quotes these figures "
+              "(docs/studies.md, docs/inverse.md, README.md) and commit")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
