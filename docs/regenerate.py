@@ -145,7 +145,9 @@ TASKS = [
          ["study/p04/accuracy.csv", "study/p04/noise.csv"],
          what="docs/studies.md: P04's ladder and its table"),
     Task("study-stability", study_stability,
-         ["study/stability/tunnelling_kinematic.csv", "study/stability/tunnelling_runs.csv"],
+         ["study/stability/tunnelling_kinematic.csv", "study/stability/tunnelling_runs.csv",
+          "study/stability/pair_map.csv", "study/stability/pair_map_softening.csv",
+          "study/stability/cooling_map.csv"],
          what="docs/studies.md: missed collisions, pair and cooling maps"),
     Task("readme-report", readme_report, ["results/paper2004_best_report.txt"],
          what="README.md: what a run prints"),
@@ -238,6 +240,26 @@ def pipeline_md_quotes_validate(agglo: pathlib.Path) -> list[str]:
     return []
 
 
+def readme_quotes_the_pandas_slope(agglo: pathlib.Path) -> list[str]:
+    """README.md's pandas example prints the slope of log N against log t in the scaling
+    regime (N0/10 ≥ N ≥ 100) of ballistic_aggregation; the README quotes it."""
+    import math
+    with tempfile.TemporaryDirectory() as tmp:
+        series = pathlib.Path(tmp) / "series.csv"
+        run([agglo, "run", "scenarios/ballistic_aggregation.json", "--series", series, "-q"])
+        with open(series, newline="") as f:
+            rows = list(csv.DictReader(f))
+    n0 = float(rows[0]["bodies"])
+    fit = [r for r in rows if 100 <= float(r["bodies"]) <= n0 / 10]
+    xs = [math.log(float(r["t"])) for r in fit]
+    ys = [math.log(float(r["bodies"])) for r in fit]
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    slope = sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
+    quoted = f"# printed {slope:.2f}"
+    readme = (ROOT / "README.md").read_text()
+    return [] if quoted in readme else [f"README.md's pandas example should say `{quoted}`"]
+
+
 def docs_quote_the_peer_counts(table: pathlib.Path) -> list[str]:
     """Each collision count of the peer clouds appears, as README.md and docs/speed.md
     write it (thin-space thousands), in both pages' tables."""
@@ -272,6 +294,7 @@ def compare(task: Task, fresh_docs: pathlib.Path, agglo: pathlib.Path) -> list[s
     if task.name == "readme-report":
         out += readme_quotes_the_report(ROOT / "docs" / task.files[0])
         out += pipeline_md_quotes_validate(agglo)
+        out += readme_quotes_the_pandas_slope(agglo)
     if task.name == "peers":
         out += docs_quote_the_peer_counts(ROOT / "docs" / task.files[0])
     if task.name == "tutorial":
