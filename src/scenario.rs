@@ -800,8 +800,10 @@ fn body_is_plausible(b: &PlacedBody) -> bool {
 }
 
 /// Length of a 3-vector [same unit as its components].
+/// |x|, without overflowing for components up to f64::MAX / √3 (the sum of squares of
+/// components ≳ 1.34e154 is ∞; hypot scales first).
 fn norm(x: [f64; 3]) -> f64 {
-    (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
+    x[0].hypot(x[1]).hypot(x[2])
 }
 
 /// Steps a run of length `end` [s] needs at steps of at most `dt` [s]: ⌈T/Δt⌉, less a
@@ -848,9 +850,11 @@ impl Validator {
             self.push(path, allowed, x);
         }
     }
-    /// A speed [m/s] above [`MAX_SPEED`] (NaN and ∞ are reported by the finiteness checks).
+    /// A speed [m/s] above [`MAX_SPEED`]. ∞ counts (finite components whose norm
+    /// overflows, e.g. v̄ = (1e200, 0, 0), validated and then hung the run); NaN is
+    /// reported by the finiteness checks.
     fn below_speed_limit(&mut self, path: &str, speed: f64) {
-        if speed.is_finite() && speed > MAX_SPEED {
+        if speed > MAX_SPEED {
             self.issues.push(ValidationIssue {
                 path: path.into(),
                 message: format!(

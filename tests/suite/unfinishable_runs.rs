@@ -85,6 +85,17 @@ fn a_non_physical_speed_is_refused_naming_its_field() {
     let mut v = shipped("two_body.json");
     v["cloud"]["bodies"][1]["velocity"] = json!([-9.6e4, 7.2e4, 0]);
     assert_refused(&v, &["cloud.bodies.1.velocity: speed 1.2000e5 m/s"]);
+    // Finite components whose squares overflow: |v| = ∞ by the sum of squares, so the
+    // limit let them through and the run never ended (issue 39).
+    let mut v = shipped("quick_demo.json");
+    v["cloud"]["v_mean"] = json!([1e200, 0, 0]);
+    assert_refused(&v, &["cloud.v_mean: speed 1.0000e200 m/s"]);
+    let mut v = shipped("quick_demo.json");
+    v["cloud"]["v_mean"] = json!([0, 0, 2e154]);
+    assert_refused(&v, &["cloud.v_mean: speed 2.0000e154 m/s"]);
+    let mut v = shipped("two_body.json");
+    v["cloud"]["bodies"][1]["velocity"] = json!([1e200, 1e200, 0]);
+    assert_refused(&v, &["cloud.bodies.1.velocity: speed 1.4142e200 m/s"]);
 }
 
 /// The library's answer for `v`: Ok, or every issue's text.
