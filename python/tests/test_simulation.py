@@ -232,6 +232,30 @@ def test_hooks_get_every_impact_merge_and_sample_in_batches(scenarios, tmp_path)
     np.testing.assert_array_equal(plain.bodies()["x"], sim.bodies()["x"])
 
 
+def test_an_interval_finer_than_the_clock_calls_the_hook_every_step_and_ends(scenarios):
+    """every=1e-20 s (and 1e-300) is far below the clock's rounding at t ~ 1e-4 s:
+    `next += dt` stopped moving and the run never returned (issue 39). Now such a hook is
+    due at every step, and the run ends."""
+    for every in (1e-20, 1e-300):
+        sim = agglo.Simulation(quick(scenarios, **{"time.end": 2e-4}), seed=5)
+        times, impact_times = [], []
+        sim.on_sample(lambda s: times.append(s["t"]), every=every)
+        sim.on_impacts(lambda b: impact_times.extend(b["t"]), every=every)
+        start = time.perf_counter()
+        sim.run()
+        assert time.perf_counter() - start < 60
+        assert sim.t == pytest.approx(2e-4)
+        # At every step end, never twice at one time (events at one instant are steps
+        # of the same time): every impact's time is a sample's.
+        assert len(times) == len(set(times))
+        assert len(impact_times) == sim.counters["impacts"] > 100
+        assert set(impact_times) <= set(times)
+    # Running to a time before the first step's end stops at that step.
+    sim = agglo.Simulation(quick(scenarios), seed=5)
+    assert sim.run(until=1e-25) is False
+    assert 0 < sim.t < 1e-3
+
+
 def test_an_exception_in_a_hook_stops_the_run_naming_the_step_and_time(scenarios):
     sim = agglo.Simulation(quick(scenarios), seed=5)
 

@@ -468,3 +468,48 @@ fn the_shipped_settling_scene_runs_to_its_end_without_a_stall() {
         c.bonds
     );
 }
+
+/// A drag so weak that its terminal velocity g τ is ~1e19 m/s, under gravity: the run
+/// hung (2.2 M steps in 15 s at gas density 1e-21) or, at 1e-15, ended with every vertical
+/// velocity quantised to the last bits of g τ s (vz = 20.3359375 for every body). Now
+/// it runs as the free fall it nearly is: within the steps the same scene takes without
+/// drag (a step cap turns a regression into a failure, not a hang), and with velocities
+/// as varied as without drag.
+#[test]
+fn a_drag_too_weak_to_matter_flies_as_free_fall() {
+    let base = Scenario::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenarios/quick_demo.json"
+    )))
+    .unwrap();
+    let run = |field: &str| {
+        let s = base
+            .with_settings(&[format!("field={field}"), "time.max_steps=100000".into()])
+            .unwrap();
+        let mut sim = Simulation::new(&s).unwrap();
+        sim.run().unwrap_or_else(|e| panic!("{field}: {e}"));
+        let vz: Vec<f64> = sim.bodies().iter().map(|b| b.velocity.z).collect();
+        (sim.clock().step, vz)
+    };
+    let (free_steps, free_vz) = run(r#"{"gravity":[0,0,-9.81]}"#);
+    for density in ["1e-21", "1e-15"] {
+        let (steps, vz) = run(&format!(
+            r#"{{"gravity":[0,0,-9.81],"drag":{{"relaxation":{{"epstein":{{"gas_density":{density},"thermal_speed":400}}}}}}}}"#
+        ));
+        // A different path of the same chaotic run, not a stall: within 2× the steps.
+        assert!(
+            steps < 2 * free_steps,
+            "{density}: {steps} steps against {free_steps}"
+        );
+        let mut distinct = vz.clone();
+        distinct.sort_by(f64::total_cmp);
+        distinct.dedup();
+        assert!(
+            distinct.len() * 10 > vz.len() * 9,
+            "{density}: {} distinct vz of {} (free fall: {})",
+            distinct.len(),
+            vz.len(),
+            free_vz.len()
+        );
+    }
+}
