@@ -47,12 +47,43 @@ pub fn main_with(extensions: impl IntoIterator<Item = agglo::plugins::Extension>
             return ExitCode::FAILURE;
         }
     }
-    match main() {
+    match main_reporting_output_failures() {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("error: {err:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// `print!` panics when standard output cannot be written (`agglo schema > /dev/full`:
+/// "failed printing to stdout: No space left on device", exit 101). That one panic
+/// becomes an error naming standard output and a failing exit; any other panic goes on
+/// as before. Files the command wrote before it are complete: a report is printed last.
+fn main_reporting_output_failures() -> anyhow::Result<()> {
+    fn output_failure(payload: &(dyn std::any::Any + Send)) -> Option<String> {
+        let text = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())?;
+        text.starts_with("failed printing to std")
+            .then(|| text.to_string())
+    }
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if output_failure(info.payload()).is_none() {
+            default_hook(info);
+        }
+    }));
+    match std::panic::catch_unwind(main) {
+        Ok(result) => result,
+        Err(payload) => match output_failure(payload.as_ref()) {
+            Some(text) => Err(anyhow::anyhow!(
+                "cannot write to standard output or standard error ({text}): is the disk \
+                 full, or the file it is redirected to not writable?"
+            )),
+            None => std::panic::resume_unwind(payload),
+        },
     }
 }
 

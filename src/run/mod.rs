@@ -100,16 +100,12 @@ impl RunPlan {
         })
     }
 
-    /// No output is the restart file: `--out run.restart` with `output.restart` wrote
-    /// the recording, then replaced it by the restart file at the first checkpoint.
-    pub fn check_paths(&self) -> anyhow::Result<()> {
-        let Some(restart) = self.restart_file() else {
-            return Ok(());
-        };
-        let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-        let restart_abs = absolute(&restart);
+    /// Every output of the plan, with the flag that names it: the recording and the
+    /// layout written beside it, the summary, the final state, the tables and the
+    /// restart file.
+    fn outputs(&self) -> Vec<(&'static str, PathBuf)> {
         let t = &self.tables;
-        for (flag, path) in [
+        let mut out: Vec<(&'static str, PathBuf)> = [
             ("--out (the recording)", &self.recording),
             ("--summary", &self.summary),
             ("--final-state", &self.final_state),
@@ -117,15 +113,54 @@ impl RunPlan {
             ("--sizes", &t.sizes),
             ("--snapshots", &t.snapshots),
             ("--collisions", &t.collisions),
-        ] {
-            if let Some(path) = path
-                && absolute(path) == restart_abs
-            {
-                anyhow::bail!(
-                    "{flag} {} is also the restart file of this run's checkpoints; give one \
-                     of them another name (--restart FILE or output.restart.path)",
-                    path.display()
-                );
+        ]
+        .into_iter()
+        .filter_map(|(flag, path)| path.clone().map(|p| (flag, p)))
+        .collect();
+        if let Some(mcap) = &self.recording {
+            out.push((
+                "the recording's layout (beside --out)",
+                crate::record::layout::layout_path_for(mcap),
+            ));
+        }
+        if let Some(restart) = self.restart_file() {
+            out.push((
+                "the restart file of this run's checkpoints (--restart FILE or \
+                 output.restart.path)",
+                restart,
+            ));
+        }
+        out
+    }
+
+    /// No two outputs share a file (`--out x.mcap --summary x.mcap` left one of them
+    /// lost and exited 0; `--out run.restart` with `output.restart` wrote the recording,
+    /// then replaced it by the restart file at the first checkpoint), and the final state
+    /// is CSV (`--final-state x.parquet` wrote CSV under a Parquet name).
+    pub fn check_paths(&self) -> anyhow::Result<()> {
+        if let Some(path) = &self.final_state
+            && path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("parquet"))
+        {
+            anyhow::bail!(
+                "--final-state {}: the final state is written as CSV; give a .csv name \
+                 (for Parquet, --snapshots F.parquet holds every body at each sample, the \
+                 last at the end)",
+                path.display()
+            );
+        }
+        let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        let outputs = self.outputs();
+        for (k, (flag, path)) in outputs.iter().enumerate() {
+            for (other_flag, other) in &outputs[..k] {
+                if absolute(path) == absolute(other) {
+                    anyhow::bail!(
+                        "{other_flag} and {flag} are the same file, {}: each output needs a \
+                         name of its own",
+                        path.display()
+                    );
+                }
             }
         }
         Ok(())

@@ -913,3 +913,78 @@ fn tables_of_a_killed_run_are_readable() {
     let csv = std::fs::read_to_string(dir.join("b.csv")).unwrap();
     assert!(csv.ends_with('\n'), "b.csv ends in a torn row");
 }
+
+/// A full disk behind standard output (`> /dev/full`) is an error naming standard
+/// output and a failing exit, not a panic (exit 101), in every command that prints.
+#[test]
+fn a_full_standard_output_is_an_error_not_a_panic() {
+    let full = Path::new("/dev/full");
+    if !full.exists() {
+        return; // not Linux: no such device to test with
+    }
+    let quick = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/two_body.json");
+    let quick = quick.to_str().unwrap();
+    for args in [vec!["schema"], vec!["validate", quick], vec!["run", quick]] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_agglo"))
+            .args(&args)
+            .stdout(std::fs::File::create(full).unwrap())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("cannot write to standard output"),
+            "{args:?}: {stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
+
+/// Two outputs on one file are refused before the run, naming both (they exited 0 with
+/// one of them lost), and so is a final state under a Parquet name (written as CSV).
+#[test]
+fn outputs_that_share_a_file_are_refused_naming_both() {
+    let dir = tempfile::tempdir().unwrap();
+    let quick = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/two_body.json");
+    for (args, words) in [
+        (
+            vec!["--out", "x.mcap", "--summary", "x.mcap"],
+            vec!["--out (the recording)", "--summary", "x.mcap"],
+        ),
+        (
+            vec!["--final-state", "y.csv", "--series", "y.csv"],
+            vec!["--final-state", "--series", "y.csv"],
+        ),
+        (
+            vec!["--out", "r.mcap", "--summary", "r.layout.json"],
+            vec!["layout", "--summary"],
+        ),
+        (
+            vec!["--out", "run.restart", "--set", "output.restart.every=1e-4"],
+            vec!["--out (the recording)", "restart file"],
+        ),
+        (
+            vec!["--final-state", "f.parquet"],
+            vec!["--final-state f.parquet", "CSV"],
+        ),
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_agglo"))
+            .current_dir(dir.path())
+            .arg("run")
+            .arg(&quick)
+            .args(&args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        for w in words {
+            assert!(stderr.contains(w), "{args:?}: no `{w}` in {stderr}");
+        }
+        // Refused before anything was written.
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            0,
+            "{args:?}"
+        );
+    }
+}
