@@ -62,6 +62,17 @@ pub fn load_bodies(path: &Path) -> anyhow::Result<Vec<PlacedBody>> {
     // The rows of the last sample, when the table holds several.
     let rows: Vec<usize> = match floats("t")? {
         Some(t) => {
+            // A time that is not a number belongs to no sample: refused by its row (it
+            // was dropped without a word, with the bodies of that row).
+            if let Some(k) = t.iter().position(|t| !t.is_finite()) {
+                bail!(
+                    "{}: row {} (data row, from 1): t = {}: allowed a finite time [s]; the \
+                     rows of the last t are the bodies",
+                    path.display(),
+                    k + 1,
+                    t[k]
+                );
+            }
             let last = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             (0..t.len()).filter(|&k| t[k] == last).collect()
         }

@@ -279,6 +279,16 @@ fn from_file_reads_the_last_snapshot_and_refuses_unknown_columns() {
     )
     .unwrap();
     v["cloud"]["from_file"] = json!(dir.path().join("c.csv").to_str().unwrap());
-    let err = Scenario::from_value(v).unwrap_err().to_string();
+    let err = Scenario::from_value(v.clone()).unwrap_err().to_string();
     assert!(err.contains("unknown column `colour`"), "{err}");
+    // A row whose t is not a number belongs to no sample: refused by its row (15 of 20
+    // bodies were dropped without a word).
+    std::fs::write(
+        dir.path().join("d.csv"),
+        "t,x,y,z\n1e-3,0,0,0\nNaN,0.001,0,0\n1e-3,0.002,0,0\n",
+    )
+    .unwrap();
+    v["cloud"]["from_file"] = json!(dir.path().join("d.csv").to_str().unwrap());
+    let err = Scenario::from_value(v).unwrap_err().to_string();
+    assert!(err.contains("row 2") && err.contains("t = NaN"), "{err}");
 }
