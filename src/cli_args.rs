@@ -140,7 +140,7 @@ pub enum StudyCommand {
         #[arg(long)]
         target_growth: Option<f64>,
         /// Runs at once (1: timings do not share cores; 0 = one per core).
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, value_parser = threads_arg, default_value_t = 1)]
         threads: usize,
     },
     /// Stability maps of the pair solve and cooling, and missed collisions against step size.
@@ -222,7 +222,7 @@ pub struct OptimizeArgs {
     #[arg(long)]
     pub resume: bool,
     /// Worker threads (default: one per core; under mpirun, one per rank).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, value_parser = threads_arg, default_value_t = 0)]
     pub threads: usize,
     /// No progress display and no report.
     #[arg(long, short)]
@@ -259,7 +259,7 @@ pub struct ScanArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Worker threads (default: one per core; under mpirun, one per rank).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, value_parser = threads_arg, default_value_t = 0)]
     pub threads: usize,
     #[arg(long, short)]
     pub quiet: bool,
@@ -338,7 +338,7 @@ pub struct KernelArgs {
     #[arg(long, value_name = "S", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub seeds: u32,
     /// Worker threads (0 = one per core); the file is the same for any number.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, value_parser = threads_arg, default_value_t = 0)]
     pub threads: usize,
     /// Count impacts and exposure only for T0 ≤ t < T1 [s].
     #[arg(long, value_name = "T0:T1", conflicts_with = "burn_in")]
@@ -367,4 +367,15 @@ pub struct KernelArgs {
     /// No line per run.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// `--threads N`: a count of worker threads, 0 ≤ N ≤ [`crate::farm::MAX_THREADS`].
+pub fn threads_arg(text: &str) -> Result<usize, String> {
+    let n: usize = text.parse().map_err(|_| {
+        format!(
+            "allowed a whole number 0 ≤ threads ≤ {} (got {text})",
+            crate::farm::MAX_THREADS
+        )
+    })?;
+    crate::farm::check_threads(n)
 }

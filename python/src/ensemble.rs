@@ -33,6 +33,8 @@ pub fn ensemble<'py>(
         if seeds.is_empty() {
             return Err(scenario_error("ensemble: seeds: at least one seed"));
         }
+        agglo::farm::check_threads(threads)
+            .map_err(|e| scenario_error(format!("ensemble: threads: {e}")))?;
         for name in &tables {
             if !["series", "sizes", "snapshots", "collisions"].contains(&name.as_str()) {
                 return Err(scenario_error(format!(

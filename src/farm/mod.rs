@@ -174,6 +174,24 @@ pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "a panic without a message".into())
 }
 
+/// The most worker threads a run may ask for: far above any machine's cores, and far
+/// below what exhausts the process (`--threads 100000` started tens of thousands of OS
+/// threads, and once aborted under a 4 GiB limit).
+pub const MAX_THREADS: usize = 1024;
+
+/// `threads` checked against [`MAX_THREADS`], with the allowed range in the error.
+pub fn check_threads(threads: usize) -> Result<usize, String> {
+    if threads <= MAX_THREADS {
+        Ok(threads)
+    } else {
+        Err(format!(
+            "allowed 0 ≤ threads ≤ {MAX_THREADS} (0 = one per core; this machine has {}) \
+             (got {threads})",
+            thread_count(0)
+        ))
+    }
+}
+
 /// The number of worker threads for `threads` (0 = one per core).
 pub fn thread_count(threads: usize) -> usize {
     if threads > 0 {

@@ -988,3 +988,39 @@ fn outputs_that_share_a_file_are_refused_naming_both() {
         );
     }
 }
+
+/// A thread count beyond any machine is refused with the range before any thread starts
+/// (`--threads 100000` started tens of thousands of OS threads).
+#[test]
+fn a_thread_count_beyond_any_machine_is_refused() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let demo = root.join("scenarios/inverse_demo.json");
+    let quick = root.join("scenarios/quick_demo.json");
+    let (demo, quick) = (demo.to_str().unwrap(), quick.to_str().unwrap());
+    for args in [
+        vec![
+            "scan",
+            demo,
+            "--gene",
+            "cloud.v_rel.0",
+            "--from",
+            "1",
+            "--to",
+            "2",
+            "--out",
+            "x",
+        ],
+        vec!["optimize", demo, "--out", "x"],
+        vec!["kernel", quick, "--bins", "primaries:1,4", "--out", "k.npz"],
+        vec!["study", "readings", quick, "--out", "x"],
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_agglo"))
+            .args(&args)
+            .args(["--threads", "100000"])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(stderr.contains("threads ≤ 1024"), "{args:?}: {stderr}");
+    }
+}

@@ -39,7 +39,7 @@ pub struct ReadingsArgs {
     #[arg(long)]
     pub list: bool,
     /// Runs at once (0 = one per core; under mpirun, one per rank).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, value_parser = crate::cli_args::threads_arg, default_value_t = 0)]
     pub threads: usize,
 }
 
