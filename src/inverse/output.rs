@@ -452,6 +452,7 @@ impl Figure for Convergence<'_> {
                     });
                 chart
                     .configure_series_labels()
+                    .position(SeriesLabelPosition::UpperRight)
                     .label_font((FONT, 14))
                     .background_style(WHITE.mix(0.8))
                     .border_style(BLACK)
