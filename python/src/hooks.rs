@@ -255,6 +255,12 @@ fn call(py: Python<'_>, hook: &Hook, b: Batch, sim: &Simulation) -> PyResult<()>
 
 fn with_place(error: PyErr, kind: Kind, step: u64, time: f64) -> PyErr {
     Python::attach(|py| {
+        // Ctrl-C and sys.exit() inside a hook are not the hook's failure: they go on as
+        // they are, so that `except KeyboardInterrupt` and an exit still work (they
+        // came out as AggloError). Only an Exception is wrapped with where it happened.
+        if !error.is_instance_of::<pyo3::exceptions::PyException>(py) {
+            return error;
+        }
         let wrapped = AggloError::new_err(format!(
             "hook {} raised at step {step}, t = {time:e} s: {}",
             kind.name(),

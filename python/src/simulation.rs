@@ -254,10 +254,26 @@ impl Inner {
             };
             plan.live = Some(options);
         }
-        self.plan = plan;
-        self.memory_tables = memory_tables;
-        self.has_outputs = true;
-        self.rebuild()
+        let before = (
+            std::mem::replace(&mut self.plan, plan),
+            std::mem::replace(&mut self.memory_tables, memory_tables),
+            std::mem::replace(&mut self.has_outputs, true),
+        );
+        self.rebuild_or_restore(|inner| {
+            (inner.plan, inner.memory_tables, inner.has_outputs) = before;
+        })
+    }
+
+    /// [`Inner::rebuild`]; when it fails (an output that cannot be opened), `restore`
+    /// puts back what was there and the run is rebuilt as it was, so that the error
+    /// leaves a usable simulation (it left one that refused every later call).
+    fn rebuild_or_restore(&mut self, restore: impl FnOnce(&mut Self)) -> PyResult<()> {
+        let Err(error) = self.rebuild() else {
+            return Ok(());
+        };
+        restore(self);
+        self.rebuild()?;
+        Err(error)
     }
 
     /// Build the run anew from the scenario, the outputs and the hooks' subscriptions
@@ -541,7 +557,9 @@ impl Simulation {
             }
             let now = inner.sim()?.clock().time;
             inner.hooks.push(Hook::new(kind, every, function, now));
-            inner.rebuild()
+            inner.rebuild_or_restore(|inner| {
+                inner.hooks.pop();
+            })
         })
     }
 

@@ -273,6 +273,34 @@ def test_an_exception_in_a_hook_stops_the_run_naming_the_step_and_time(scenarios
         agglo.Simulation(quick(scenarios)).on_impacts(print, every_events=0)
 
 
+def test_an_output_that_cannot_be_opened_leaves_the_simulation_usable(scenarios, tmp_path):
+    """run(record=...) into a directory that does not exist fails, and the simulation
+    is as it was: it runs to the end without that output (it refused every later call)."""
+    sim = agglo.Simulation(quick(scenarios), seed=5)
+    with pytest.raises(agglo.AggloError, match="missing"):
+        sim.run(record=tmp_path / "missing" / "x.mcap")
+    assert sim.t == 0
+    assert sim.run() is True and sim.finished
+    plain = agglo.Simulation(quick(scenarios), seed=5)
+    plain.run()
+    np.testing.assert_array_equal(plain.bodies()["x"], sim.bodies()["x"])
+
+
+def test_ctrl_c_and_exit_inside_a_hook_come_out_as_themselves(scenarios):
+    """KeyboardInterrupt and SystemExit raised in a hook are not wrapped as AggloError
+    (`except KeyboardInterrupt` missed them), and the run can go on afterwards."""
+    for raised in (KeyboardInterrupt, SystemExit):
+        sim = agglo.Simulation(quick(scenarios), seed=5)
+
+        def hook(batch, raised=raised):
+            raise raised()
+
+        sim.on_impacts(hook, every_events=50)
+        with pytest.raises(raised):
+            sim.run()
+        assert not sim.finished and sim.t > 0
+
+
 def record_impacts(batch):
     """A module-level hook, so that it pickles."""
     record_impacts.seen += len(batch["t"])
