@@ -15,7 +15,7 @@
 use std::collections::BTreeMap;
 use std::ops::ControlFlow;
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -80,6 +80,26 @@ struct Inner {
 #[pyclass(module = "agglo._agglo", name = "Simulation")]
 pub struct Simulation {
     inner: Mutex<Inner>,
+    /// The clock of the run while it is locked by `run()`/`step()` (a hook reading
+    /// `sim.t` ran into the lock and was told the simulation ran in another thread).
+    clock: ClockMirror,
+}
+
+/// Time [s] (as bits) and step of the last step taken, stored after every step.
+#[derive(Default)]
+struct ClockMirror {
+    time_bits: std::sync::atomic::AtomicU64,
+    step: std::sync::atomic::AtomicU64,
+}
+
+impl ClockMirror {
+    fn store(&self, time: f64, step: u64) {
+        self.time_bits.store(time.to_bits(), Ordering::Relaxed);
+        self.step.store(step, Ordering::Relaxed);
+    }
+    fn time(&self) -> f64 {
+        f64::from_bits(self.time_bits.load(Ordering::Relaxed))
+    }
 }
 
 /// The outputs of the plan, resolved (tables kept in memory have their paths).
@@ -149,13 +169,17 @@ impl Simulation {
         };
         inner.rebuild()?;
         Ok(Self {
+            clock: ClockMirror::default(),
             inner: Mutex::new(inner),
         })
     }
 
     fn lock(&self) -> PyResult<MutexGuard<'_, Inner>> {
         self.inner.try_lock().map_err(|_| {
-            AggloError::new_err("this simulation is running in another thread; wait for it")
+            AggloError::new_err(
+                "this simulation is running (a hook of its own run, or another thread): read \
+                 it once run() or step() returns; sim.t and sim.steps can be read meanwhile",
+            )
         })
     }
 }
@@ -383,6 +407,7 @@ fn advance(
     run: &mut Run,
     hooks: &mut [crate::hooks::Hook],
     until: Until,
+    clock: &ClockMirror,
 ) -> (Result<(), SimError>, Option<PyErr>) {
     py.detach(|| {
         let mut raised: Option<PyErr> = None;
@@ -390,6 +415,7 @@ fn advance(
         let mut steps = 0u64;
         let outcome = run.advance(until, &mut |s| {
             steps += 1;
+            clock.store(s.clock().time, s.clock().step);
             if !hooks.is_empty()
                 && let Err(r) = crate::hooks::observe(hooks, s, false)
             {
@@ -618,13 +644,20 @@ impl Simulation {
     /// Simulated time [s].
     #[getter]
     fn t(&self) -> PyResult<f64> {
-        Ok(self.lock()?.sim()?.clock().time)
+        match self.inner.try_lock() {
+            Ok(inner) => Ok(inner.sim()?.clock().time),
+            // Running (read from a hook): the time of the last step taken.
+            Err(_) => Ok(self.clock.time()),
+        }
     }
 
     /// Steps taken (events, on the event core).
     #[getter]
     fn steps(&self) -> PyResult<u64> {
-        Ok(self.lock()?.sim()?.clock().step)
+        match self.inner.try_lock() {
+            Ok(inner) => Ok(inner.sim()?.clock().step),
+            Err(_) => Ok(self.clock.step.load(Ordering::Relaxed)),
+        }
     }
 
     /// True once T is reached.
@@ -722,7 +755,9 @@ impl Simulation {
         let State::Running(run) = state else {
             return Ok(true);
         };
-        let (outcome, raised) = advance(py, run, hooks, until);
+        let c = run.sim().clock();
+        self.clock.store(c.time, c.step);
+        let (outcome, raised) = advance(py, run, hooks, until, &self.clock);
         if let Some(err) = raised {
             // Ctrl-C (or another signal handler's exception): the run stays valid.
             return Err(err);

@@ -286,6 +286,28 @@ def test_an_output_that_cannot_be_opened_leaves_the_simulation_usable(scenarios,
     np.testing.assert_array_equal(plain.bodies()["x"], sim.bodies()["x"])
 
 
+def test_a_hook_reads_the_clock_of_its_own_run(scenarios):
+    """sim.t and sim.steps inside a hook are the last step's (they raised "running in
+    another thread"); the rest of the simulation says it is running."""
+    sim = agglo.Simulation(quick(scenarios), seed=5)
+    seen = []
+
+    def hook(batch):
+        seen.append((sim.t, sim.steps, batch["t"][-1]))
+        if len(seen) == 1:
+            with pytest.raises(agglo.AggloError, match="sim.t and sim.steps can be read"):
+                sim.counters
+
+    sim.on_impacts(hook, every_events=20)
+    sim.run()
+    assert len(seen) > 3
+    # The step that made the batch due ended at or after its last impact; the clock
+    # read in the hook moves forward with the run.
+    for t, steps, last_impact in seen:
+        assert last_impact <= t <= sim.t and steps > 0
+    assert all(a[0] < b[0] and a[1] < b[1] for a, b in zip(seen, seen[1:]))
+
+
 def test_ctrl_c_and_exit_inside_a_hook_come_out_as_themselves(scenarios):
     """KeyboardInterrupt and SystemExit raised in a hook are not wrapped as AggloError
     (`except KeyboardInterrupt` missed them), and the run can go on afterwards."""
