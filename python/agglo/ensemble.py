@@ -13,6 +13,7 @@ from typing import Any, Dict, Iterable, List, Sequence
 import numpy as np
 
 from . import _agglo
+from ._args import MAX_SEED, MAX_THREADS, whole
 from .scenario import Scenario
 from .table import Table, units_of
 
@@ -64,9 +65,9 @@ def ensemble(
     collisions), sampled on the scenario's ``output.sampling``; they are returned stacked,
     with a ``seed`` column. The scenario's own output files are not written.
     """
-    seeds = [int(s) for s in seeds]
+    seeds = [whole("seeds", s, 0, MAX_SEED) for s in seeds]
     tables = list(tables)
-    results = _agglo.ensemble(scenario._inner, seeds, int(threads), tables)
+    results = _agglo.ensemble(scenario._inner, seeds, whole("threads", threads, 0, MAX_THREADS), tables)
     summaries = [json.loads(text) for text, _ in results]
     stacked: Dict[str, Table] = {}
     for name in tables:

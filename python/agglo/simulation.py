@@ -13,6 +13,7 @@ import os
 from typing import Any, Dict, Iterable, Mapping, Optional, Union
 
 from . import _agglo
+from ._args import MAX_COUNT, MAX_SEED, whole
 from .scenario import Scenario
 from .table import Table, units_of
 
@@ -60,7 +61,9 @@ class Simulation:
         if not isinstance(scenario, Scenario):
             raise TypeError("Simulation(scenario): give an agglo.Scenario")
         self._carry = [c._spec(name) for name, c in (carry or {}).items()]
-        self._sim = _agglo.Simulation(scenario._inner, None if seed is None else int(seed), self._carry)
+        self._sim = _agglo.Simulation(
+            scenario._inner, None if seed is None else whole("seed", seed, 0, MAX_SEED), self._carry
+        )
         self._hooks = []
 
     def __reduce__(self):
@@ -71,6 +74,8 @@ class Simulation:
         return (_unpickle, (self._sim._restart_bytes(), list(self._hooks), list(self._carry)))
 
     def _add_hook(self, kind, function, every, every_events):
+        if every_events is not None:
+            every_events = whole("every_events", every_events, 1, MAX_COUNT)
         self._sim.add_hook(kind, function, every, every_events)
         self._hooks.append((kind, function, every, every_events))
 
@@ -153,7 +158,7 @@ class Simulation:
 
     def step(self, n: int = 1) -> bool:
         """Advance ``n`` steps (events, on the event core), or to T. True once at T."""
-        return self._sim.step(int(n))
+        return self._sim.step(whole("n", n, 0, MAX_COUNT))
 
     def close(self) -> None:
         """Finalise the outputs now (a recording then says the run stopped here)."""

@@ -414,3 +414,25 @@ def test_refused_outputs_leave_the_simulation_as_it_was(scenarios):
     assert len(sim.sizes()) > 0
     with pytest.raises(agglo.ScenarioError, match="kept: sizes"):
         sim.series()
+
+
+def test_whole_number_arguments_are_refused_by_name(scenarios):
+    """Seeds, counts and thread numbers out of range or not whole are refused naming the
+    argument and its range (they raised a bare OverflowError, or 1.5 became 1)."""
+    s = quick(scenarios)
+    cases = [
+        (lambda: agglo.Simulation(s, seed=-1), "seed"),
+        (lambda: agglo.Simulation(s, seed=2**64), "seed"),
+        (lambda: agglo.Simulation(s, seed=1.5), "seed"),
+        (lambda: agglo.Simulation(s).step(-3), "n"),
+        (lambda: agglo.Simulation(s).on_impacts(print, every_events=2**70), "every_events"),
+        (lambda: agglo.ensemble(s, seeds=[1, -2]), "seeds"),
+        (lambda: agglo.ensemble(s, seeds=[1], threads=10**6), "threads"),
+        (lambda: agglo.ensemble(s, seeds=[1], threads=2.0), "threads"),
+    ]
+    for call, name in cases:
+        with pytest.raises(agglo.ScenarioError, match=rf"^{name}: allowed"):
+            call()
+    # Whole numbers of any integer type still work (numpy's too).
+    sim = agglo.Simulation(s, seed=np.uint64(5))
+    assert sim.step(np.int32(2)) is False and sim.steps == 2
