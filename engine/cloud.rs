@@ -293,7 +293,10 @@ pub fn placed_bodies(
                 return Err(invalid(
                     i,
                     &format!("position.{k}"),
-                    format!("allowed −D ≤ x ≤ D = {d:e} (got {x})"),
+                    format!(
+                        "allowed −D ≤ x ≤ D = {d:e} (got {})",
+                        crate::readable::exact(x)
+                    ),
                 ));
             }
         }

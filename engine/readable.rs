@@ -23,9 +23,33 @@ pub fn sci(x: f64) -> String {
     format!("{mantissa}e{exponent}")
 }
 
+/// `x` to every digit (shortest round-trip), in the shorter of the two notations a
+/// person reads: plain between 1e-3 and 1e6 (`0.25`, `300`), scientific outside (`1e-300`,
+/// `2e154`). For the value a message says it was given: Rust's `{}` prints 1e-300 as
+/// 302 characters of zeros.
+pub fn exact(x: f64) -> String {
+    let magnitude = x.abs();
+    if !x.is_finite() || x == 0.0 || (1e-3..1e6).contains(&magnitude) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::sci;
+    use super::{exact, sci};
+
+    #[test]
+    fn given_values_print_to_every_digit_and_briefly() {
+        assert_eq!(exact(1e-300), "1e-300");
+        assert_eq!(exact(2e154), "2e154");
+        assert_eq!(exact(0.25), "0.25");
+        assert_eq!(exact(-300.0), "-300");
+        assert_eq!(exact(7.904000000000001e-4), "7.904000000000001e-4");
+        assert_eq!(exact(0.0), "0");
+        assert_eq!(exact(f64::NAN), "NaN");
+    }
 
     #[test]
     fn times_print_as_a_person_wrote_them() {

@@ -24,6 +24,11 @@ pub fn load_bodies(path: &Path) -> anyhow::Result<Vec<PlacedBody>> {
     // A body table has the columns of --snapshots (t first) and --final-state.
     let known = || SNAPSHOT_COLUMNS.iter().map(|c| c.name);
     for name in &table.names {
+        // pandas' `to_parquet(index=True)` (its default for a non-range index) stores the
+        // index as `__index_level_0__`: not a column of the bodies, and no reason to refuse.
+        if name.starts_with("__index_level_") {
+            continue;
+        }
         if !known().any(|k| k == name) {
             bail!(
                 "{}: unknown column `{name}` (allowed: {})",

@@ -599,8 +599,9 @@ impl Scenario {
             v.issues.push(ValidationIssue {
                 path: "box.half_width".into(),
                 message: format!(
-                    "the box volume (2D)³ = {:e} m³ overflows or vanishes; allowed 1e-100 m ≤ D ≤ 1e100 m (got {d})",
+                    "the box volume (2D)³ = {:e} m³ overflows or vanishes; allowed 1e-100 m ≤ D ≤ 1e100 m (got {})",
                     self.domain.side().powi(3),
+                    agglo_engine::readable::exact(d),
                 ),
             });
             return;
@@ -680,7 +681,8 @@ impl Scenario {
                         path: path.into(),
                         message: format!(
                             "a primary grain (b0 = {b0:e} m) at θ = {theta:e} K cools at an \
-                             infinite rate k_c θ + k_r θ⁴; allowed θ with a finite rate (got {theta})"
+                             infinite rate k_c θ + k_r θ⁴; allowed θ with a finite rate (got {})",
+                            agglo_engine::readable::exact(theta)
                         ),
                     });
                 }
@@ -822,7 +824,10 @@ impl Validator {
     fn push(&mut self, path: &str, allowed: &str, got: f64) {
         self.issues.push(ValidationIssue {
             path: path.into(),
-            message: format!("allowed {allowed} (got {got})"),
+            message: format!(
+                "allowed {allowed} (got {})",
+                agglo_engine::readable::exact(got)
+            ),
         });
     }
     fn finite(&mut self, path: &str, x: f64) {

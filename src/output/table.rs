@@ -542,7 +542,20 @@ fn read_csv(path: &Path) -> anyhow::Result<Table> {
 /// on one flipped bit. The first is also checked before reading (below).
 fn read_parquet_guarded(path: &Path) -> anyhow::Result<Table> {
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read_parquet(path))) {
-        Ok(result) => result,
+        Ok(result) => result.map_err(|e| {
+            // A codec this build leaves out (the crate says "Disabled feature at compile
+            // time: brotli"): say which codecs are read.
+            let text = format!("{e:#}");
+            match text.split("Disabled feature at compile time: ").nth(1) {
+                Some(codec) => anyhow::anyhow!(
+                    "the file is compressed with {}, which agglo does not read: write it with \
+                     compression \"snappy\" (pandas' default), \"zstd\", \"gzip\", \"lz4\" \
+                     or none",
+                    codec.trim()
+                ),
+                None => e,
+            }
+        }),
         Err(panic) => {
             let what = panic
                 .downcast_ref::<&str>()
@@ -551,6 +564,23 @@ fn read_parquet_guarded(path: &Path) -> anyhow::Result<Table> {
                 .unwrap_or_else(|| "a panic in the Parquet reader".into());
             bail!("the file is damaged (the Parquet reader failed: {what})")
         }
+    }
+}
+
+/// What a Parquet value is, in words (for a refusal; the crate's names are its own).
+fn kind_of(field: &Field) -> &'static str {
+    match field {
+        Field::Bool(_) => "true/false",
+        Field::Decimal(_) => "decimal",
+        Field::Float16(_) => "half-precision float",
+        Field::Bytes(_) => "byte-string",
+        Field::Date(_) => "date",
+        Field::TimeMillis(_) | Field::TimeMicros(_) => "time-of-day",
+        Field::TimestampMillis(_) | Field::TimestampMicros(_) => "timestamp",
+        Field::Group(_) => "nested (struct)",
+        Field::ListInternal(_) => "list",
+        Field::MapInternal(_) => "map",
+        _ => "these",
     }
 }
 
@@ -585,16 +615,25 @@ fn read_parquet(path: &Path) -> anyhow::Result<Table> {
             let Some(column) = columns.get_mut(k) else {
                 bail!("row {row_number}: more fields than columns");
             };
-            // Floats and integers of any width widen to f64 / i64.
+            // Floats and integers of any width widen to f64 / i64 (u64 kept apart: ids).
             let value = match field {
                 Field::Double(x) => Values::F(vec![*x]),
                 Field::Float(x) => Values::F(vec![f64::from(*x)]),
                 Field::Long(n) => Values::I(vec![*n]),
                 Field::ULong(n) => Values::U(vec![*n]),
                 Field::Int(n) => Values::I(vec![i64::from(*n)]),
+                Field::Short(n) => Values::I(vec![i64::from(*n)]),
+                Field::Byte(n) => Values::I(vec![i64::from(*n)]),
+                Field::UInt(n) => Values::I(vec![i64::from(*n)]),
+                Field::UShort(n) => Values::I(vec![i64::from(*n)]),
+                Field::UByte(n) => Values::I(vec![i64::from(*n)]),
                 Field::Str(s) => Values::S(vec![s.clone()]),
                 Field::Null => Values::F(vec![f64::NAN]),
-                other => bail!("row {row_number}, column `{name}`: unsupported value {other:?}"),
+                other => bail!(
+                    "row {row_number}, column `{name}`: {} values are not read; give numbers \
+                     (floats, or integers for ids; times in seconds as floats)",
+                    kind_of(other)
+                ),
             };
             match (column, value) {
                 (slot @ None, value) => *slot = Some(value),

@@ -418,43 +418,71 @@ fn inspect_of_a_killed_recording_says_what_is_readable_and_how_to_resume() {
 /// ("Disabled feature at compile time: snap").
 #[test]
 fn from_file_reads_snappy_parquet() {
-    use parquet::basic::Compression;
-    use parquet::data_type::DoubleType;
+    use parquet::basic::{Compression, GzipLevel};
+    use parquet::data_type::{DoubleType, Int32Type, Int64Type};
     use parquet::file::properties::WriterProperties;
     use parquet::file::writer::SerializedFileWriter;
     use std::sync::Arc;
 
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("b.parquet");
-    let schema = Arc::new(
-        parquet::schema::parser::parse_message_type(
-            "message b { REQUIRED DOUBLE x; REQUIRED DOUBLE y; REQUIRED DOUBLE z; }",
+    // Snappy (pandas' default), gzip and lz4 (pandas' other choices, refused as a
+    // "disabled feature" before); ids as int8 (refused by its internal type name) and
+    // pandas' stored index `__index_level_0__` (refused as an unknown column).
+    for compression in [
+        Compression::SNAPPY,
+        Compression::GZIP(GzipLevel::default()),
+        Compression::LZ4_RAW,
+        Compression::LZ4,
+    ] {
+        let path = dir.path().join("b.parquet");
+        let schema = Arc::new(
+            parquet::schema::parser::parse_message_type(
+                "message b { REQUIRED DOUBLE x; REQUIRED DOUBLE y; REQUIRED DOUBLE z; \
+                 REQUIRED INT32 id (INTEGER(8, true)); REQUIRED INT64 __index_level_0__; }",
+            )
+            .unwrap(),
+        );
+        let props = WriterProperties::builder()
+            .set_compression(compression)
+            .build();
+        let mut writer = SerializedFileWriter::new(
+            std::fs::File::create(&path).unwrap(),
+            schema,
+            Arc::new(props),
         )
-        .unwrap(),
-    );
-    let props = WriterProperties::builder()
-        .set_compression(Compression::SNAPPY)
-        .build();
-    let mut writer = SerializedFileWriter::new(
-        std::fs::File::create(&path).unwrap(),
-        schema,
-        Arc::new(props),
-    )
-    .unwrap();
-    let mut group = writer.next_row_group().unwrap();
-    for values in [[-0.003, 0.003], [0.0, 0.0], [0.0, 0.0]] {
+        .unwrap();
+        let mut group = writer.next_row_group().unwrap();
+        for values in [[-0.003, 0.003], [0.0, 0.0], [0.0, 0.0]] {
+            let mut column = group.next_column().unwrap().unwrap();
+            column
+                .typed::<DoubleType>()
+                .write_batch(&values, None, None)
+                .unwrap();
+            column.close().unwrap();
+        }
         let mut column = group.next_column().unwrap().unwrap();
         column
-            .typed::<DoubleType>()
-            .write_batch(&values, None, None)
+            .typed::<Int32Type>()
+            .write_batch(&[7, 9], None, None)
             .unwrap();
         column.close().unwrap();
+        let mut column = group.next_column().unwrap().unwrap();
+        column
+            .typed::<Int64Type>()
+            .write_batch(&[10, 11], None, None)
+            .unwrap();
+        column.close().unwrap();
+        group.close().unwrap();
+        writer.close().unwrap();
+        let bodies = agglo::cloud_file::load_bodies(&path)
+            .unwrap_or_else(|e| panic!("{compression:?}: {e:#}"));
+        assert_eq!(bodies.len(), 2);
+        assert_eq!(bodies[1].position, [0.003, 0.0, 0.0]);
+        assert_eq!(
+            bodies.iter().map(|b| b.id).collect::<Vec<_>>(),
+            [Some(7), Some(9)]
+        );
     }
-    group.close().unwrap();
-    writer.close().unwrap();
-    let bodies = agglo::cloud_file::load_bodies(&path).unwrap();
-    assert_eq!(bodies.len(), 2);
-    assert_eq!(bodies[1].position, [0.003, 0.0, 0.0]);
 }
 
 /// A CSV table whose writer was killed mid-row ends in a torn line: it is left out on
