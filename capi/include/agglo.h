@@ -203,6 +203,21 @@ enum AggloStatus agglo_coupling_primary(const struct AggloCoupling *coupling,
                                         double *radius,
                                         double *mass);
 
+// The primary grain's radius [m] and mass [kg] of a scenario given as JSON text — the
+// mass unit a flow solver's class edges are usually given in — without making a
+// coupling first. The scenario is validated; a primary grain that is not a finite
+// radius > 0 is refused.
+//
+// # Safety
+// `scenario_json` is a NUL-terminated string; `radius` and `mass` NULL or writable.
+enum AggloStatus agglo_scenario_primary(const char *scenario_json, double *radius, double *mass);
+
+// As `agglo_scenario_primary`, with the scenario read from the file at `path`.
+//
+// # Safety
+// `path` is a NUL-terminated string; `radius` and `mass` NULL or writable.
+enum AggloStatus agglo_scenario_primary_load(const char *path, double *radius, double *mass);
+
 // Free a coupling (NULL is ignored). No cell call may be running on it.
 //
 // # Safety

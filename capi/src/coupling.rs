@@ -138,6 +138,75 @@ pub unsafe extern "C" fn agglo_coupling_primary(
     })
 }
 
+/// The primary grain's radius [m] and mass [kg] of a scenario given as JSON text — the
+/// mass unit a flow solver's class edges are usually given in — without making a
+/// coupling first. The scenario is validated; a primary grain that is not a finite
+/// radius > 0 is refused.
+///
+/// # Safety
+/// `scenario_json` is a NUL-terminated string; `radius` and `mass` NULL or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn agglo_scenario_primary(
+    scenario_json: *const c_char,
+    radius: *mut f64,
+    mass: *mut f64,
+) -> AggloStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let json = unsafe { text(scenario_json, "scenario_json") }?;
+        let scenario = Scenario::from_json(json).map_err(scenario_failure)?;
+        // SAFETY: as above.
+        unsafe { write_primary(&scenario, radius, mass) }
+    })
+}
+
+/// As `agglo_scenario_primary`, with the scenario read from the file at `path`.
+///
+/// # Safety
+/// `path` is a NUL-terminated string; `radius` and `mass` NULL or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn agglo_scenario_primary_load(
+    path: *const c_char,
+    radius: *mut f64,
+    mass: *mut f64,
+) -> AggloStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let path = unsafe { text(path, "path") }?;
+        let scenario = Scenario::load(std::path::Path::new(path)).map_err(scenario_failure)?;
+        // SAFETY: as above.
+        unsafe { write_primary(&scenario, radius, mass) }
+    })
+}
+
+/// Validate `scenario` and write its primary radius and mass.
+///
+/// # Safety
+/// `radius` and `mass` NULL or writable.
+unsafe fn write_primary(
+    scenario: &Scenario,
+    radius: *mut f64,
+    mass: *mut f64,
+) -> Result<(), Failure> {
+    scenario.validate().map_err(scenario_failure)?;
+    let (b0, m0) = (scenario.primary_radius(), scenario.primary_mass());
+    if !(b0.is_finite() && b0 > 0.0 && m0.is_finite()) {
+        return Err(scenario_failure(format!(
+            "cloud: primary radius {b0:e} m (give cloud.radius [m], a finite radius > 0)"
+        )));
+    }
+    // SAFETY: each is NULL (skipped) or writable (the caller's contract).
+    unsafe {
+        if let Some(r) = radius.as_mut() {
+            *r = b0;
+        }
+        if let Some(m) = mass.as_mut() {
+            *m = m0;
+        }
+    }
+    Ok(())
+}
+
 /// Free a coupling (NULL is ignored). No cell call may be running on it.
 ///
 /// # Safety

@@ -184,6 +184,12 @@ class Scenario:
         return self._inner.derived()["primary_radius"]
 
     @property
+    def primary_mass(self) -> float:
+        """The primary grain's mass (4/3) pi b0^3 rho [kg]: the unit a flow solver's class
+        edges are given in (``agglo.subgrid.Coupling``), without making a coupling."""
+        return self._inner.derived()["primary_mass"]
+
+    @property
     def volume_fraction(self) -> float:
         """The cloud's initial volume fraction."""
         return self._inner.derived()["volume_fraction"]

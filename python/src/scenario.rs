@@ -148,10 +148,11 @@ impl Scenario {
         serde_json::to_string_pretty(&Inner::json_schema()).map_err(|e| agglo_error(e.into()))
     }
 
-    /// Derived figures: the primary radius b0 [m] and the volume fraction.
+    /// Derived figures: the primary radius b0 [m] and mass [kg] and the volume fraction.
     fn derived<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         d.set_item("primary_radius", self.inner.primary_radius())?;
+        d.set_item("primary_mass", self.inner.primary_mass())?;
         d.set_item("volume_fraction", self.inner.volume_fraction())?;
         d.set_item("event_core", self.inner.uses_event_core())?;
         Ok(d)

@@ -13,12 +13,14 @@ use super::cell::{CellState, KeptBox, ReplicaRun, STATE_VERSION, run_replica};
 use super::config::Coupling;
 use super::error::SubgridError;
 use super::exchange::{CellInput, CellOutput};
-use super::lift::{box_volume, check_box, check_input};
+use super::lift::{box_volume, check_box, check_input, is_trace};
 use super::restrict::combine;
 
 /// What a cell's step starts from, once its input and state are checked.
 struct Prepared {
     volume: f64,
+    /// The classes lifting skips as traces (none for kept boxes).
+    ignored: Vec<bool>,
     time: f64,
     steps: u64,
 }
@@ -39,11 +41,20 @@ fn prepare(
         Some(s) => s.volume,
         None => box_volume(c, cell, input)?,
     };
-    if kept.is_none() {
-        check_box(c, cell, input, volume)?;
-    }
+    let ignored = match kept {
+        Some(_) => vec![false; input.classes.len()],
+        None => {
+            check_box(c, cell, input, volume)?;
+            input
+                .classes
+                .iter()
+                .map(|k| is_trace(k.number_density, volume))
+                .collect()
+        }
+    };
     Ok(Prepared {
         volume,
+        ignored,
         time: state.map_or(0.0, |s| s.time),
         steps: state.map_or(0, |s| s.macro_steps),
     })
@@ -63,9 +74,9 @@ fn finish(
         c,
         cell,
         macro_step,
-        input.dt,
+        input,
         prepared.volume,
-        c.base.field.gravity,
+        &prepared.ignored,
         &measured,
     );
     if c.kernel {

@@ -15,6 +15,7 @@ use super::error::SubgridError;
 use super::exchange::CellInput;
 use super::lift::{gas_field, lift, replica_seed};
 use super::restrict::{ClassSums, Replica};
+use crate::resources::{Counters, EnergyLedger};
 
 /// Layout version of [`CellState::to_bytes`]; bumped when it changes.
 pub const STATE_VERSION: u32 = 1;
@@ -118,6 +119,32 @@ pub struct ReplicaRun {
     pub kept: Option<KeptBox>,
 }
 
+/// A box whose Poisson draw held no body (probability e^−N): it saw nothing, and
+/// counts as such (every sum and event 0), since dropping it would bias every rate up.
+/// A closed cell cannot keep an empty box: refused, asking for a larger N.
+fn empty_box(
+    c: &Coupling,
+    cell: u64,
+    replica: u32,
+    volume: f64,
+) -> Result<ReplicaRun, SubgridError> {
+    if c.keep_bodies {
+        return Err(SubgridError::input(
+            cell,
+            "bodies",
+            format!("replica {replica}'s box of {volume:e} m³ drew no body"),
+            "a closed cell keeps its boxes: raise N",
+        ));
+    }
+    let nothing = ClassSums::of(c, &[]);
+    let zero = (EnergyLedger::default(), Counters::default());
+    Ok(ReplicaRun {
+        measured: Replica::new(nothing.clone(), nothing, &zero.0, &zero.0, &zero.1, &zero.1),
+        kernel: None,
+        kept: None,
+    })
+}
+
 /// Advance replica `replica` of `cell` over `input.dt`: lift a new box of `volume`
 /// [m³] (seeded by [`replica_seed`]), or continue `kept`.
 pub fn run_replica(
@@ -141,6 +168,9 @@ pub fn run_replica(
                 SubgridError::Run { reason, .. } => fail(reason),
                 other => other,
             })?;
+            if s.cloud.bodies.is_empty() {
+                return empty_box(c, cell, replica, volume);
+            }
             (s, None)
         }
         Some(kept) => {

@@ -88,9 +88,7 @@ impl Coupling {
 
     /// Primary grain radius b0 [m] and mass m0 [kg] of the base scenario.
     pub fn primary(&self) -> (f64, f64) {
-        let b0 = self.base.primary_radius();
-        let m0 = 4.0 / 3.0 * std::f64::consts::PI * b0.powi(3) * self.base.material.rho;
-        (b0, m0)
+        (self.base.primary_radius(), self.base.primary_mass())
     }
 
     /// The kernel accumulator's grid: the coupling's edges with the open ends closed

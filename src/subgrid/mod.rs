@@ -62,7 +62,7 @@ pub use config::{BoxSize, Coupling, MAX_BODIES, MAX_REPLICAS};
 pub use error::SubgridError;
 pub use exchange::{CellInput, CellOutput, ClassInput, ClassOutput, Column, GasState, Stat};
 pub use lift::{
-    MAX_DIAMETER_PER_SIDE, MAX_VOLUME_FRACTION, box_volume, check_box, check_input,
-    expected_impact_density, lift, radius_of, replica_seed,
+    MAX_DIAMETER_PER_SIDE, MAX_VOLUME_FRACTION, TRACE_BODIES, box_volume, check_box, check_input,
+    draw_counts, expected_impact_density, is_trace, lift, radius_of, replica_seed,
 };
 pub use restrict::{ClassSums, Replica};
