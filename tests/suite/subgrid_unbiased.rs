@@ -289,51 +289,66 @@ fn mean_flow(rho: f64, p: [f64; 3]) -> f64 {
     }
 }
 
+/// A solver's energy balances over one step [W/m³]: its kinetic energy change
+/// Σ_k(mean-flow change + fluctuation_energy_rate), its thermal energy change
+/// Σ_k thermal_energy_rate, and the granular energy change it would see updating
+/// T_k from class_granular_temperature instead, G = 1.5 ρ T (with its standard error).
+fn balances(input: &CellInput, out: &CellOutput) -> (f64, f64, Stat) {
+    let dt = input.dt;
+    let (mut kinetic, mut thermal, mut intensive, mut var) = (0.0, 0.0, 0.0, 0.0);
+    for (k, o) in input.classes.iter().zip(&out.classes) {
+        let rho0 = k.number_density * k.mass;
+        let p0 = k.velocity.map(|u| rho0 * u);
+        let rho1 = rho0 + dt * o.mass_rate.mean;
+        let p1 = [0, 1, 2].map(|x| p0[x] + dt * o.momentum_rate[x].mean);
+        let mean_flow_rate = (mean_flow(rho1, p1) - mean_flow(rho0, p0)) / dt;
+        kinetic += mean_flow_rate + o.fluctuation_energy_rate.mean;
+        thermal += o.thermal_energy_rate.mean;
+        let g0 = 1.5 * rho0 * k.granular_temperature;
+        let (g1, se) = if o.granular_replicas > 0 {
+            let t = o.granular_temperature;
+            (1.5 * rho1 * t.mean, 1.5 * rho1 * t.se)
+        } else {
+            (0.0, 0.0)
+        };
+        // Against the transported one, G + Δt·rate.
+        intensive += (g1 - g0) / dt - o.fluctuation_energy_rate.mean;
+        var += (se / dt).powi(2);
+    }
+    (
+        kinetic,
+        thermal,
+        Stat {
+            mean: intensive,
+            se: var.sqrt(),
+        },
+    )
+}
+
 #[test]
 fn granular_and_thermal_energy_close_per_step_at_the_p04_cell() {
     // A solver that transports per class ρ_k, p_k, the granular energy G_k = ½ρ_k·3T_k
     // and the thermal energy C ρ_k θ_k, and adds Δt times the handed-back rates, must
     // see its kinetic energy Σ(½|p_k|²/ρ_k + G_k) change by (F − D)Δt and its thermal
     // energy by (D + R − Z − L)Δt, whatever Δt: the impact dissipation D moves from one
-    // to the other. Checked to 1e-3 of D (the issue's bar; before issue 37, updating
-    // T_k from class_granular_temperature lost 18–23 % of D at Δt = 1e-7 s and 64 % at
-    // 3e-8 s). Rounding is the only gap left: the thermal sums are ~2e9 D at P04's
-    // reaction heat.
+    // to the other. Checked to 1e-3 of D (the issue's bar; before issue 37 no energy
+    // rate was handed back, and updating T_k from class_granular_temperature lost
+    // 18–23 % of D at Δt = 1e-7 s and 64 % at 3e-8 s). Measured: 4e-14 D (kinetic) and
+    // 6e-7 D (thermal: its sums are ~2e9 D at P04's reaction heat), rounding.
     for dt in [1e-6, 1e-7, 3e-8] {
         let (c, input) = p04(300, 4, dt);
         let (out, _) = advance_cell(&c, 2004, 0, &input, None).unwrap();
         let d = out.dissipation_rate.mean;
         assert!(d > 0.0, "Δt = {dt:e}: no dissipation");
-        let mut kinetic = 0.0;
-        let mut thermal = 0.0;
-        let mut intensive = 0.0;
-        for (k, o) in input.classes.iter().zip(&out.classes) {
-            let rho0 = k.number_density * k.mass;
-            let p0 = k.velocity.map(|u| rho0 * u);
-            let rho1 = rho0 + dt * o.mass_rate.mean;
-            let p1 = [0, 1, 2].map(|x| p0[x] + dt * o.momentum_rate[x].mean);
-            kinetic +=
-                (mean_flow(rho1, p1) - mean_flow(rho0, p0)) / dt + o.fluctuation_energy_rate.mean;
-            thermal += o.thermal_energy_rate.mean;
-            // What a solver updating T_k from class_granular_temperature would hold.
-            let g0 = 1.5 * rho0 * k.granular_temperature;
-            let g1 = if o.granular_replicas > 0 {
-                1.5 * rho1 * o.granular_temperature.mean
-            } else {
-                0.0
-            };
-            intensive += (g1 - g0) / dt;
-        }
+        let (kinetic, thermal, _) = balances(&input, &out);
         let work = out.force_work_rate.mean - d;
         let heat = d + out.reaction_heat_rate.mean
             - out.fracture_energy_rate.mean
             - out.heat_loss_rate.mean;
         eprintln!(
-            "P04 cell, Δt = {dt:e} s: kinetic gap {:.2e} D, thermal gap {:.2e} D; \
-             granular energy from class temperatures misses {:.3} D",
+            "P04 cell, Δt = {dt:e} s: kinetic gap {:.2e} D, thermal gap {:.2e} D",
             (kinetic - work) / d,
             (thermal - heat) / d,
-            (intensive - (kinetic - mean_flow_change(&input, &out))) / d
         );
         assert!(
             (kinetic - work).abs() <= 1e-3 * d,
@@ -346,21 +361,29 @@ fn granular_and_thermal_energy_close_per_step_at_the_p04_cell() {
     }
 }
 
-/// Σ_k the solver's mean-flow energy change rate [W/m³] over the step.
-fn mean_flow_change(input: &CellInput, out: &CellOutput) -> f64 {
-    let dt = input.dt;
-    input
-        .classes
-        .iter()
-        .zip(&out.classes)
-        .map(|(k, o)| {
-            let rho0 = k.number_density * k.mass;
-            let p0 = k.velocity.map(|u| rho0 * u);
-            let rho1 = rho0 + dt * o.mass_rate.mean;
-            let p1 = [0, 1, 2].map(|x| p0[x] + dt * o.momentum_rate[x].mean);
-            (mean_flow(rho1, p1) - mean_flow(rho0, p0)) / dt
-        })
-        .sum()
+/// A measurement, not a check: over 64 P04 cells per Δt, how far a solver that updates
+/// T_k from class_granular_temperature (instead of transporting G_k with the energy
+/// rates) strays per step, as a fraction of the step's dissipation, mean ± SE over the
+/// cells. `cargo test --test suite granular_energy_from_class -- --ignored --nocapture`.
+#[test]
+#[ignore = "a measurement for docs/coupling.md"]
+fn granular_energy_from_class_temperatures_per_step() {
+    for dt in [1e-6, 1e-7, 3e-8] {
+        let (c, input) = p04(300, 4, dt);
+        let (mut gaps, mut dissipation) = (Vec::new(), Vec::new());
+        for cell in 0..64 {
+            let (out, _) = advance_cell(&c, cell, 0, &input, None).unwrap();
+            gaps.push(balances(&input, &out).2.mean);
+            dissipation.push(out.dissipation_rate.mean);
+        }
+        let (g, d) = (Stat::of(&gaps), Stat::of(&dissipation));
+        eprintln!(
+            "Δt = {dt:e} s: granular energy from class temperatures − transported = \
+             ({:.4} ± {:.4}) D per step",
+            g.mean / d.mean,
+            g.se / d.mean
+        );
+    }
 }
 
 #[test]
