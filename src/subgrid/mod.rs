@@ -23,7 +23,7 @@
 //! use agglo::subgrid::*;
 //! use agglo::prelude::*;
 //! let base = Scenario::load(std::path::Path::new("scenarios/ballistic_aggregation.json"))?;
-//! let m0 = 4.0 / 3.0 * std::f64::consts::PI * base.primary_radius().powi(3) * base.material.rho;
+//! let m0 = base.primary_mass();
 //! let coupling = Coupling::new(base, vec![0.5 * m0, 1.5 * m0, 2.5 * m0, 1e6 * m0])?;
 //! let class = |n: f64, m: f64| ClassInput {
 //!     number_density: n, mass: m, velocity: [0.0; 3], temperature: 300.0,
