@@ -34,6 +34,7 @@ class Scenario:
         mass: Optional[npt.NDArray[np.float64]] = None,
         temperature: Optional[npt.NDArray[np.float64]] = None,
         id: Optional[npt.NDArray[np.uint64]] = None,
+        separate: bool = False,
     ) -> Scenario: ...
     def derived(self) -> Dict[str, float]: ...
 

@@ -177,7 +177,8 @@ pub struct CellOutput {
     /// Bodies per box at the start of the step.
     pub bodies: Stat,
     pub classes: Vec<ClassOutput>,
-    /// Source rate of the total number density [1/(m³ s)] (the cell's growth: minus
+    /// Source rate of the total number density [1/(m³ s)], the column
+    /// `total_number_rate` of [`Self::columns`] (the cell's growth: minus
     /// the bodies merges removed, plus the pieces fragmentations made); its standard
     /// error is over the replicas' totals (the classes' rates are correlated, so theirs
     /// do not add up to it).
