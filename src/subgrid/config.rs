@@ -49,6 +49,11 @@ pub struct Coupling {
     /// only the input's gas state and Δt (its classes are still checked, not used).
     /// Otherwise every step lifts afresh.
     pub keep_bodies: bool,
+    /// Keep each cell's boxes between macro steps and adjust them to the input by what
+    /// transport changed since the last step's rates were applied (issue 37 item 3,
+    /// [`super::apply_rates`]): bodies removed or added, velocities shifted and
+    /// rescaled, per class. With no transport, the closed cell. Excludes `keep_bodies`.
+    pub persist: bool,
     /// Pool the kernel counts and exposure of the boxes into [`super::CellOutput::kernel`].
     pub kernel: bool,
 }
@@ -68,6 +73,7 @@ impl Coupling {
             bodies: BoxSize::Bodies(1000),
             replicas: 4,
             keep_bodies: false,
+            persist: false,
             kernel: false,
         };
         c.check()?;
@@ -174,6 +180,14 @@ impl Coupling {
                     ));
                 }
             }
+        }
+        if self.keep_bodies && self.persist {
+            return Err(SubgridError::config(
+                "persist",
+                "true with keep_bodies",
+                "one of the two: keep_bodies ignores the input after the first step, persist \
+                 adjusts the kept boxes to it",
+            ));
         }
         if !(1..=MAX_REPLICAS).contains(&self.replicas) {
             return Err(SubgridError::config(

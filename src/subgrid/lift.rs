@@ -67,7 +67,7 @@ pub fn replica_seed(base: u64, cell: u64, macro_step: u64, replica: u32) -> u64 
 }
 
 /// A generator of its own: splitmix64 over a counter (as the kernel's samples).
-struct Stream(u64);
+pub(crate) struct Stream(pub(crate) u64);
 
 impl Stream {
     fn next_u64(&mut self) -> u64 {
@@ -75,18 +75,18 @@ impl Stream {
         splitmix64(self.0)
     }
     /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
+    pub(crate) fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
     /// Standard normal (Box–Muller, one value per two uniforms).
-    fn normal(&mut self) -> f64 {
+    pub(crate) fn normal(&mut self) -> f64 {
         let u1 = 1.0 - self.uniform(); // (0, 1]
         let u2 = self.uniform();
         (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
     }
     /// Poisson with mean `lambda` ≥ 0: inversion below 10, Hörmann's transformed
     /// rejection (PTRS, 1993; as NumPy) above, exact in both.
-    fn poisson(&mut self, lambda: f64) -> u64 {
+    pub(crate) fn poisson(&mut self, lambda: f64) -> u64 {
         if lambda <= 0.0 {
             return 0;
         }
@@ -437,7 +437,7 @@ pub fn lift(
     seed: u64,
 ) -> Result<Scenario, SubgridError> {
     let rho = c.base.material.rho;
-    let (b0, m0) = c.primary();
+    let m0 = c.primary().1;
     let side = volume.cbrt();
     let fraction = check_box(c, cell, input, volume)?;
     let mut rng = Stream(seed);
@@ -456,18 +456,10 @@ pub fn lift(
         })
         .collect();
     let total: usize = counts.iter().sum();
-    let mut s = c.base.clone();
-    s.seed = seed;
-    s.domain.half_width = 0.5 * side;
-    s.material.theta0 = input.gas.temperature;
-    s.field = gas_field(c, input);
-    s.time.end = input.dt;
-    s.output = Default::default();
     if total == 0 {
         // A Poisson draw of nothing (probability e^−N): an empty box, which the run
         // skips (cell.rs); it counts as a box that saw nothing.
-        s.cloud = cloud_of(b0, Vec::new());
-        return Ok(s);
+        return Ok(box_scene(c, input, side, seed, Vec::new()));
     }
     // Largest first (ties in class order): the big ones find room before the box fills.
     let mut order: Vec<usize> = (0..c.classes()).filter(|&k| counts[k] > 0).collect();
@@ -505,18 +497,26 @@ pub fn lift(
             body.velocity = Some([0, 1, 2].map(|x| class.velocity[x] + sd * rng.normal()));
         }
     }
-    s.cloud = cloud_of(b0, bodies);
     // Not validated here: building its simulation validates it (once, 12 % of a lift
     // at P04's conditions).
-    Ok(s)
+    Ok(box_scene(c, input, side, seed, bodies))
 }
 
-/// A cloud of exactly `bodies` (explicit positions, velocities, masses) of primary
-/// radius `b0` [m].
-fn cloud_of(b0: f64, bodies: Vec<PlacedBody>) -> Cloud {
-    Cloud {
+/// The base scenario as a box of side `side` [m] holding exactly `bodies`, seeded by
+/// `seed`, in the cell's gas, running over its Δt.
+pub(crate) fn box_scene(
+    c: &Coupling,
+    input: &CellInput,
+    side: f64,
+    seed: u64,
+    bodies: Vec<PlacedBody>,
+) -> Scenario {
+    let mut s = c.base.clone();
+    s.seed = seed;
+    s.domain.half_width = 0.5 * side;
+    s.cloud = Cloud {
         count: bodies.len(),
-        radius: Some(b0),
+        radius: Some(c.primary().0),
         size_ratio: None,
         v_mean: [0.0; 3],
         v_rel: None,
@@ -525,7 +525,12 @@ fn cloud_of(b0: f64, bodies: Vec<PlacedBody>) -> Cloud {
         remove_drift: false,
         bodies,
         from_file: None,
-    }
+    };
+    s.material.theta0 = input.gas.temperature;
+    s.field = gas_field(c, input);
+    s.time.end = input.dt;
+    s.output = Default::default();
+    s
 }
 
 /// Random sequential addition in the periodic cube [−D, D)³ over a uniform grid of
@@ -534,7 +539,7 @@ fn cloud_of(b0: f64, bodies: Vec<PlacedBody>) -> Cloud {
 /// about ten per body), so a failing attempt is made cheap: the own cell is looked at
 /// first, then the faces, edges and corners, and the periodic image of a neighbour
 /// cell is a fixed shift, not a rounding per pair.
-struct PlacementGrid {
+pub(crate) struct PlacementGrid {
     side: f64,
     cells: usize,
     /// Bodies [x, y, z, radius] per cell.
@@ -546,7 +551,7 @@ struct PlacementGrid {
 }
 
 impl PlacementGrid {
-    fn new(side: f64, min_cell: f64, bodies: usize) -> Self {
+    pub(crate) fn new(side: f64, min_cell: f64, bodies: usize) -> Self {
         // At most ~8 cells per body (a dilute box would otherwise allocate a huge
         // grid); wider cells stay correct, only slower.
         let by_size = (side / min_cell).floor().max(1.0);
@@ -585,7 +590,14 @@ impl PlacementGrid {
     }
 
     /// A free position for a body of radius `b`, or `None` when the attempts ran out.
-    fn place(&mut self, b: f64, rng: &mut Stream) -> Option<[f64; 3]> {
+    /// Mark a body of radius `b` at `p` (inside the cube) as present, unchecked: the
+    /// bodies a kept box already holds, before new ones are placed among them.
+    pub(crate) fn occupy(&mut self, p: [f64; 3], b: f64) {
+        let cell = self.index(self.cell_of(p));
+        self.members[cell].push([p[0], p[1], p[2], b]);
+    }
+
+    pub(crate) fn place(&mut self, b: f64, rng: &mut Stream) -> Option<[f64; 3]> {
         let half = 0.5 * self.side;
         while self.attempts_left > 0 {
             self.attempts_left -= 1;

@@ -46,6 +46,7 @@
 //! cell's output is the same bytes for any thread or rank count and any order of
 //! submission.
 
+mod adjust;
 mod batch;
 mod cell;
 mod config;
@@ -54,6 +55,7 @@ mod exchange;
 mod lift;
 mod restrict;
 
+pub use adjust::apply_rates;
 #[cfg(feature = "mpi")]
 pub use batch::serve;
 pub use batch::{ReplicaTask, advance_cell, advance_cells, run_task};

@@ -460,6 +460,7 @@ fn mass_is_exact_and_momentum_and_energy_close_against_the_ledgers() {
             input: input.clone(),
             volume,
             kept: None,
+            expected: None,
         },
     )
     .unwrap();

@@ -1,0 +1,85 @@
+//! Boxes that persist across macro steps (issue 37 item 3): with no transport the cell is
+//! the closed cell, bit for bit; transport adds and removes bodies in the kept boxes.
+
+use agglo::subgrid::*;
+
+use crate::subgrid::{coupling, monomers};
+
+#[test]
+fn a_persistent_cell_without_transport_is_the_closed_cell() {
+    // Δt a power of two (the closed cell's clock and checkpoints, subgrid.rs).
+    let (dt, steps) = (2f64.powi(-12), 3);
+    let mut closed = coupling(300, 2);
+    closed.keep_bodies = true;
+    let mut persist = coupling(300, 2);
+    persist.persist = true;
+    let input = monomers(&closed, 0.05, dt);
+    let mut solver = input.clone();
+    let (mut a, mut b) = (None, None);
+    let mut impacts = 0.0;
+    for step in 0..steps {
+        let (_, sa) = advance_cell(&closed, 9, step, &input, a.as_ref()).unwrap();
+        let (out, sb) = advance_cell(&persist, 9, step, &solver, b.as_ref()).unwrap();
+        impacts += out.impact_rate.mean * out.box_volume * dt;
+        // The solver applies the rates and transports nothing.
+        solver = apply_rates(&persist, &solver, &out);
+        a = Some(sa);
+        b = Some(CellState::from_bytes(&sb.to_bytes()).unwrap());
+    }
+    assert!(
+        impacts >= 10.0,
+        "too few impacts to tell boxes apart: {impacts}"
+    );
+    let (a, b) = (a.unwrap(), b.unwrap());
+    assert_eq!(a.boxes().len(), 2);
+    for (x, y) in a.boxes().iter().zip(b.boxes()) {
+        assert!(
+            x.snapshot == y.snapshot,
+            "a persistent box left the closed cell"
+        );
+    }
+}
+
+#[test]
+fn transport_adds_and_removes_bodies_in_the_kept_boxes() {
+    let mut c = coupling(300, 8);
+    c.persist = true;
+    let mut input = monomers(&c, 0.05, 2e-4);
+    // Some dimers to remove later.
+    input.classes[1].number_density = 0.2 * input.classes[0].number_density;
+    let (first, state) = advance_cell(&c, 4, 0, &input, None).unwrap();
+    let volume = first.box_volume;
+    let mut next = apply_rates(&c, &input, &first);
+    // Transport brings 50 % more monomers and takes half the dimers away.
+    let mono = next.classes[0].number_density;
+    next.classes[0].number_density *= 1.5;
+    next.classes[1].number_density *= 0.5;
+    let (second, _) = advance_cell(&c, 4, 1, &next, Some(&state)).unwrap();
+    assert_eq!(second.box_volume, volume, "a kept box keeps its volume");
+    // Per box: the bodies the first step ended with, plus Poisson(0.5 n_1 V) monomers
+    // (n_1 the solver's), less each of its own dimers with probability 1/2. Within 4
+    // standard errors of the K = 8 boxes' mean.
+    let ended: f64 = first
+        .classes
+        .iter()
+        .map(|k| k.number_density.mean * volume)
+        .sum();
+    let dimers = first.classes[1].number_density.mean * volume;
+    let (added, removed) = (0.5 * mono * volume, 0.5 * dimers);
+    let se = ((added + 0.25 * 2.0 * removed) / 8.0).sqrt();
+    let start = second.bodies.mean;
+    assert!(
+        (start - (ended + added - removed)).abs() <= 4.0 * se,
+        "boxes start with {start} bodies; {ended} + {added} − {removed} ± {se} expected"
+    );
+    // The change is seen: without adjusting, the boxes would start where they ended.
+    assert!(added - removed > 8.0 * se, "{added} − {removed} vs {se}");
+
+    // keep_bodies and persist exclude each other.
+    let mut both = c.clone();
+    both.keep_bodies = true;
+    let e = advance_cell(&both, 4, 0, &input, None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("coupling: persist"), "{e}");
+}
