@@ -109,6 +109,11 @@ typedef struct AggloCouplingOptions {
   // `kernel_bounces`, `kernel_fragments` [impacts], (classes × classes) sums over the
   // replicas whose standard errors are NaN.
   bool kernel;
+  // Keep each cell's boxes between macro steps and adjust them to each new input by
+  // what transport changed since the last step's rates were applied (bodies added or
+  // removed, velocities shifted and rescaled, per class); with no transport the
+  // closed cell. Excludes `keep_bodies`.
+  bool persist;
 } AggloCouplingOptions;
 
 #ifdef __cplusplus
@@ -159,8 +164,8 @@ enum AggloStatus agglo_cells_advance(const struct AggloCoupling *coupling,
                                      enum AggloStatus *statuses,
                                      uintptr_t threads);
 
-// The defaults: N = 1000 bodies per box, K = 4 replicas, a new lift every step, no
-// kernel (target_se 0.05 within [100, 100 000] bodies when `bodies` is set to 0).
+// The defaults: N = 1000 bodies per box, K = 4 replicas, a new lift every step (not
+// kept, not persisting), no kernel (target_se 0.05 within [100, 100 000] bodies when `bodies` is set to 0).
 struct AggloCouplingOptions agglo_coupling_options_default(void);
 
 // Make a coupling from a scenario given as JSON text (the format of `scenarios/*.json`;

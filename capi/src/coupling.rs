@@ -34,10 +34,15 @@ pub struct AggloCouplingOptions {
     /// `kernel_bounces`, `kernel_fragments` [impacts], (classes × classes) sums over the
     /// replicas whose standard errors are NaN.
     pub kernel: bool,
+    /// Keep each cell's boxes between macro steps and adjust them to each new input by
+    /// what transport changed since the last step's rates were applied (bodies added or
+    /// removed, velocities shifted and rescaled, per class); with no transport the
+    /// closed cell. Excludes `keep_bodies`.
+    pub persist: bool,
 }
 
-/// The defaults: N = 1000 bodies per box, K = 4 replicas, a new lift every step, no
-/// kernel (target_se 0.05 within [100, 100 000] bodies when `bodies` is set to 0).
+/// The defaults: N = 1000 bodies per box, K = 4 replicas, a new lift every step (not
+/// kept, not persisting), no kernel (target_se 0.05 within [100, 100 000] bodies when `bodies` is set to 0).
 #[unsafe(no_mangle)]
 pub extern "C" fn agglo_coupling_options_default() -> AggloCouplingOptions {
     AggloCouplingOptions {
@@ -48,6 +53,7 @@ pub extern "C" fn agglo_coupling_options_default() -> AggloCouplingOptions {
         replicas: 4,
         keep_bodies: false,
         kernel: false,
+        persist: false,
     }
 }
 
@@ -274,6 +280,7 @@ unsafe fn make(
     c.replicas = options.replicas;
     c.keep_bodies = options.keep_bodies;
     c.kernel = options.kernel;
+    c.persist = options.persist;
     c.check()?;
     Ok(c)
 }

@@ -172,6 +172,13 @@ fn nulls_and_bad_lengths_are_refused_by_name() {
         );
         assert_eq!(status, AggloStatus::Config);
         assert!(message().contains("edges[1]"), "{}", message());
+        // A closed cell and a persistent one at once.
+        let mut both = agglo_coupling_options_default();
+        both.keep_bodies = true;
+        both.persist = true;
+        let status = agglo_coupling_load(path.as_ptr(), edges.as_ptr(), 2, &both, &mut coupling);
+        assert_eq!(status, AggloStatus::Config);
+        assert!(message().contains("persist"), "{}", message());
         assert!(coupling.is_null());
         assert_eq!(agglo_coupling_classes(std::ptr::null()), 0);
         agglo_coupling_free(std::ptr::null_mut());

@@ -96,6 +96,7 @@ class Coupling:
         target_se: float = 0.05,
         min_bodies: int = 100,
         max_bodies: int = 100000,
+        persist: bool = False,
     ) -> None: ...
     @property
     def classes(self) -> int: ...

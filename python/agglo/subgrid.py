@@ -101,17 +101,21 @@ class Coupling:
     class ``edges`` [kg], N = ``bodies`` per box (``None``: sized for a relative standard
     error ``target_se`` of the impact rate within [``min_bodies``, ``max_bodies``]), K =
     ``replicas`` boxes per cell, whether cells keep their bodies between macro steps
-    (a closed cell), and whether to pool the kernel sums.
+    (a closed cell, ``keep_bodies``) or keep them and adjust them to what transport
+    changed (``persist``: bodies added or removed, velocities shifted and rescaled per
+    class; with no transport the closed cell), and whether to pool the kernel sums.
     """
 
     def __init__(self, scenario, edges: Sequence[float], *, bodies: Optional[int] = 1000,
                  replicas: int = 4, keep_bodies: bool = False, kernel: bool = False,
-                 target_se: float = 0.05, min_bodies: int = 100, max_bodies: int = 100_000):
+                 target_se: float = 0.05, min_bodies: int = 100, max_bodies: int = 100_000,
+                 persist: bool = False):
         if not isinstance(scenario, Scenario):
             scenario = Scenario.load(scenario)
         self._c = _agglo.Coupling(scenario._inner, [float(e) for e in edges], bodies,
                                   int(replicas), bool(keep_bodies), bool(kernel),
-                                  float(target_se), int(min_bodies), int(max_bodies))
+                                  float(target_se), int(min_bodies), int(max_bodies),
+                                  bool(persist))
 
     @property
     def classes(self) -> int:

@@ -172,3 +172,18 @@ def test_energy_rates_close_and_the_primary_comes_from_the_scenario(coupling):
     assert abs(out["thermal_energy_rate"].sum() - d) <= 1e-12 * thermal_scale
     assert out.units["fluctuation_energy_rate"] == "W/m^3"
     assert "total_number_rate" in out.names() and not out["ignored"].any()
+
+
+def test_persistent_cells_take_up_what_transport_brings():
+    base = agglo.Scenario.load(BASE)
+    c = Coupling(base, edges_of(base), bodies=300, replicas=2, persist=True)
+    inputs = monomers(c, [0.04])
+    first, states = c.advance_cells(0, [3], **inputs)
+    # Transport doubles the monomers: the kept boxes get about 300 more bodies each
+    # (Poisson), on top of the ~290 they ended with.
+    doubled = dict(inputs, number_density=2 * inputs["number_density"])
+    second, _ = c.advance_cells(1, [3], states=states, **doubled)
+    assert second[0].box_volume == first[0].box_volume
+    assert 500 < second[0]["bodies"] < 700
+    with pytest.raises(agglo.ScenarioError, match="persist"):
+        Coupling(base, edges_of(base), keep_bodies=True, persist=True)

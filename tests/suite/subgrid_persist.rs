@@ -83,3 +83,46 @@ fn transport_adds_and_removes_bodies_in_the_kept_boxes() {
         .to_string();
     assert!(e.contains("coupling: persist"), "{e}");
 }
+
+/// A measurement, not a check (issue 37 item 3's figure): closed uniform cells of
+/// sticky monomers (φ = 0.05, T = 1, N = 1000, K = 4, 128 cells) stepped as a sectional
+/// solver steps them ([`apply_rates`], energy transported) to t = 2 τ0, re-lifted every
+/// step or persisting (which, without transport, is the closed cell: the boxes' own
+/// dynamics), for 1, 4 and 20 steps. Prints N/N0 and n1/n0 at the end, mean ± SE over
+/// the cells. `cargo test --test suite relifted_chains -- --ignored --nocapture`.
+#[test]
+#[ignore = "a measurement for docs/coupling.md (about two minutes)"]
+fn relifted_chains_against_persistent_boxes() {
+    let tau0 = 5.2e-4;
+    for steps in [1u64, 4, 20] {
+        let dt = 2.0 * tau0 / steps as f64;
+        for persist in [false, true] {
+            let mut c = coupling(1000, 4);
+            c.persist = persist;
+            let start = monomers(&c, 0.05, dt);
+            let n0 = start.classes[0].number_density;
+            let (mut total, mut mono) = (Vec::new(), Vec::new());
+            for cell in 0..128u64 {
+                let (mut input, mut state) = (start.clone(), None);
+                for step in 0..steps {
+                    let (out, s) =
+                        advance_cell(&c, 1000 + cell, step, &input, state.as_ref()).unwrap();
+                    input = apply_rates(&c, &input, &out);
+                    state = Some(s);
+                }
+                total.push(input.classes.iter().map(|k| k.number_density).sum::<f64>() / n0);
+                mono.push(input.classes[0].number_density / n0);
+            }
+            let (t, m) = (Stat::of(&total), Stat::of(&mono));
+            eprintln!(
+                "{steps:2} steps of {:.3} τ0, {}: N/N0 = {:.4} ± {:.4}, n1/n0 = {:.4} ± {:.4}",
+                dt / tau0,
+                if persist { "persistent" } else { "re-lifted " },
+                t.mean,
+                t.se,
+                m.mean,
+                m.se
+            );
+        }
+    }
+}
