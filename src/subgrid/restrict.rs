@@ -169,8 +169,9 @@ fn mean_flow_energy(rho: f64, p: [f64; 3]) -> f64 {
 }
 
 /// The cell's output from its replicas (in replica order), each a box of `volume`
-/// [m³] run over `input.dt` [s] in gravity `g` [m/s²], with heat capacity
-/// `heat_capacity` [J/(kg K)]; `ignored[k]` marks the classes lifting skipped as traces.
+/// [m³] run over `input.dt` [s] (gravity and heat capacity C from the coupling's base
+/// scene); `input` is the solver's state the energy rates are measured against, and
+/// `ignored[k]` marks the classes lifting skipped as traces.
 pub fn combine(
     c: &Coupling,
     cell: u64,

@@ -126,3 +126,24 @@ fn relifted_chains_against_persistent_boxes() {
         }
     }
 }
+
+/// The direct reference of [`relifted_chains_against_persistent_boxes`]: eight boxes of
+/// 10⁵ bodies of the same cell run in one step to 2 τ0 (the figure docs/coupling.md
+/// quotes; about 15 s). `cargo test --test suite direct_boxes -- --ignored --nocapture`.
+#[test]
+#[ignore = "a measurement for docs/coupling.md"]
+fn direct_boxes_of_1e5_bodies_at_2_tau0() {
+    let tau0 = 5.2e-4;
+    let c = coupling(100_000, 8);
+    let start = monomers(&c, 0.05, 2.0 * tau0);
+    let n0 = start.classes[0].number_density;
+    let (out, _) = advance_cell(&c, 7, 0, &start, None).unwrap();
+    let end = apply_rates(&c, &start, &out);
+    let total: f64 = end.classes.iter().map(|k| k.number_density).sum::<f64>() / n0;
+    eprintln!(
+        "8 boxes of 1e5 bodies to 2 τ0: N/N0 = {total:.4} ± {:.4}, n1/n0 = {:.4} ± {:.4}",
+        out.number_rate.se * 2.0 * tau0 / n0,
+        end.classes[0].number_density / n0,
+        out.classes[0].number_rate.se * 2.0 * tau0 / n0
+    );
+}
