@@ -355,3 +355,44 @@ fn stirred_tank_against_a_direct_tank() {
         }
     }
 }
+
+/// A timing, not a check: the wall time per box of a macro step (sticky monomers,
+/// φ = 0.05, N = 1000, Δt = 0.1 τ0, 8 cells × K = 4, steps 1–4 after a first lift) when
+/// re-lifted, resumed as a closed cell, and persistent with 10 % of the content
+/// transported per step (adjusted each step). In this build's profile (opt-level 1):
+/// relative figures only. `cargo test --test suite cost_of_a -- --ignored --nocapture`.
+#[test]
+#[ignore = "a timing for docs/coupling.md"]
+fn cost_of_a_persistent_step() {
+    let dt = 0.1 * 5.2e-4;
+    for mode in ["re-lifted", "closed", "persistent"] {
+        let mut c = coupling(1000, 4);
+        c.keep_bodies = mode == "closed";
+        c.persist = mode == "persistent";
+        let start = monomers(&c, 0.05, dt);
+        let mut cells: Vec<(u64, CellInput, Option<CellState>)> =
+            (0..8).map(|id| (id, start.clone(), None)).collect();
+        let mut seconds = 0.0;
+        for step in 0..5u64 {
+            let clock = std::time::Instant::now();
+            let results = advance_cells(&c, step, &cells, &agglo::farm::Workers::local(1));
+            if step > 0 {
+                seconds += clock.elapsed().as_secs_f64();
+            }
+            for (cell, r) in cells.iter_mut().zip(results) {
+                let (out, s) = r.unwrap();
+                let after = apply_rates(&c, &cell.1, &out);
+                cell.1 = if mode == "persistent" {
+                    stirred(&c, &after, &start)
+                } else {
+                    after
+                };
+                cell.2 = Some(s);
+            }
+        }
+        eprintln!(
+            "{mode:10}: {:.2} ms per box per step",
+            seconds / (4.0 * 8.0 * 4.0) * 1e3
+        );
+    }
+}
