@@ -40,6 +40,7 @@ pub mod record;
 pub mod restart;
 pub mod run;
 pub mod scenario;
+pub mod separate;
 pub mod study;
 pub mod subgrid;
 pub mod validate;

@@ -211,6 +211,12 @@ impl Scenario {
         self.cloud.primary_radius(&self.domain)
     }
 
+    /// Mass of the primary grain [kg]: (4/3)π b0³ ρ, b0 [`Self::primary_radius`] and ρ
+    /// `material.rho` (the mass unit of a flow solver's size classes, docs/coupling.md).
+    pub fn primary_mass(&self) -> f64 {
+        4.0 / 3.0 * std::f64::consts::PI * self.primary_radius().powi(3) * self.material.rho
+    }
+
     /// Volume fraction of the initial cloud.
     pub fn volume_fraction(&self) -> f64 {
         self.cloud.volume_fraction(&self.domain)

@@ -71,13 +71,11 @@ int main(int argc, char **argv) {
   options.bodies = 300;
   options.replicas = 2;
 
-  /* Classes by primaries: 1, 2, 3-4, 5-8, 9 and up (edges in units of m0 first). */
-  AggloCoupling *probe = NULL;
+  /* Classes by primaries: 1, 2, 3-4, 5-8, 9 and up: edges in units of the primary
+     grain's mass m0, read from the scenario. */
   double unit_edges[CLASSES + 1] = {0.5, 1.5, 2.5, 4.5, 8.5, 1e9};
   double b0, m0;
-  check(agglo_coupling_load(argv[1], unit_edges, CLASSES + 1, &options, &probe), "coupling");
-  check(agglo_coupling_primary(probe, &b0, &m0), "primary");
-  agglo_coupling_free(probe);
+  check(agglo_scenario_primary_load(argv[1], &b0, &m0), "primary");
   double edges[CLASSES + 1];
   for (int k = 0; k <= CLASSES; k++) edges[k] = unit_edges[k] * m0;
   AggloCoupling *coupling = NULL;

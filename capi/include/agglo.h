@@ -109,6 +109,11 @@ typedef struct AggloCouplingOptions {
   // `kernel_bounces`, `kernel_fragments` [impacts], (classes × classes) sums over the
   // replicas whose standard errors are NaN.
   bool kernel;
+  // Keep each cell's boxes between macro steps and adjust them to each new input by
+  // what transport changed since the last step's rates were applied (bodies added or
+  // removed, velocities shifted and rescaled, per class); with no transport the
+  // closed cell. Excludes `keep_bodies`.
+  bool persist;
 } AggloCouplingOptions;
 
 #ifdef __cplusplus
@@ -159,8 +164,8 @@ enum AggloStatus agglo_cells_advance(const struct AggloCoupling *coupling,
                                      enum AggloStatus *statuses,
                                      uintptr_t threads);
 
-// The defaults: N = 1000 bodies per box, K = 4 replicas, a new lift every step, no
-// kernel (target_se 0.05 within [100, 100 000] bodies when `bodies` is set to 0).
+// The defaults: N = 1000 bodies per box, K = 4 replicas, a new lift every step (not
+// kept, not persisting), no kernel (target_se 0.05 within [100, 100 000] bodies when `bodies` is set to 0).
 struct AggloCouplingOptions agglo_coupling_options_default(void);
 
 // Make a coupling from a scenario given as JSON text (the format of `scenarios/*.json`;
@@ -202,6 +207,21 @@ uintptr_t agglo_coupling_classes(const struct AggloCoupling *coupling);
 enum AggloStatus agglo_coupling_primary(const struct AggloCoupling *coupling,
                                         double *radius,
                                         double *mass);
+
+// The primary grain's radius [m] and mass [kg] of a scenario given as JSON text — the
+// mass unit a flow solver's class edges are usually given in — without making a
+// coupling first. The scenario is validated; a primary grain that is not a finite
+// radius > 0 is refused.
+//
+// # Safety
+// `scenario_json` is a NUL-terminated string; `radius` and `mass` NULL or writable.
+enum AggloStatus agglo_scenario_primary(const char *scenario_json, double *radius, double *mass);
+
+// As `agglo_scenario_primary`, with the scenario read from the file at `path`.
+//
+// # Safety
+// `path` is a NUL-terminated string; `radius` and `mass` NULL or writable.
+enum AggloStatus agglo_scenario_primary_load(const char *path, double *radius, double *mass);
 
 // Free a coupling (NULL is ignored). No cell call may be running on it.
 //

@@ -34,10 +34,15 @@ pub struct AggloCouplingOptions {
     /// `kernel_bounces`, `kernel_fragments` [impacts], (classes × classes) sums over the
     /// replicas whose standard errors are NaN.
     pub kernel: bool,
+    /// Keep each cell's boxes between macro steps and adjust them to each new input by
+    /// what transport changed since the last step's rates were applied (bodies added or
+    /// removed, velocities shifted and rescaled, per class); with no transport the
+    /// closed cell. Excludes `keep_bodies`.
+    pub persist: bool,
 }
 
-/// The defaults: N = 1000 bodies per box, K = 4 replicas, a new lift every step, no
-/// kernel (target_se 0.05 within [100, 100 000] bodies when `bodies` is set to 0).
+/// The defaults: N = 1000 bodies per box, K = 4 replicas, a new lift every step (not
+/// kept, not persisting), no kernel (target_se 0.05 within [100, 100 000] bodies when `bodies` is set to 0).
 #[unsafe(no_mangle)]
 pub extern "C" fn agglo_coupling_options_default() -> AggloCouplingOptions {
     AggloCouplingOptions {
@@ -48,6 +53,7 @@ pub extern "C" fn agglo_coupling_options_default() -> AggloCouplingOptions {
         replicas: 4,
         keep_bodies: false,
         kernel: false,
+        persist: false,
     }
 }
 
@@ -138,6 +144,75 @@ pub unsafe extern "C" fn agglo_coupling_primary(
     })
 }
 
+/// The primary grain's radius [m] and mass [kg] of a scenario given as JSON text — the
+/// mass unit a flow solver's class edges are usually given in — without making a
+/// coupling first. The scenario is validated; a primary grain that is not a finite
+/// radius > 0 is refused.
+///
+/// # Safety
+/// `scenario_json` is a NUL-terminated string; `radius` and `mass` NULL or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn agglo_scenario_primary(
+    scenario_json: *const c_char,
+    radius: *mut f64,
+    mass: *mut f64,
+) -> AggloStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let json = unsafe { text(scenario_json, "scenario_json") }?;
+        let scenario = Scenario::from_json(json).map_err(scenario_failure)?;
+        // SAFETY: as above.
+        unsafe { write_primary(&scenario, radius, mass) }
+    })
+}
+
+/// As `agglo_scenario_primary`, with the scenario read from the file at `path`.
+///
+/// # Safety
+/// `path` is a NUL-terminated string; `radius` and `mass` NULL or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn agglo_scenario_primary_load(
+    path: *const c_char,
+    radius: *mut f64,
+    mass: *mut f64,
+) -> AggloStatus {
+    guard(|| {
+        // SAFETY: the caller's contract.
+        let path = unsafe { text(path, "path") }?;
+        let scenario = Scenario::load(std::path::Path::new(path)).map_err(scenario_failure)?;
+        // SAFETY: as above.
+        unsafe { write_primary(&scenario, radius, mass) }
+    })
+}
+
+/// Validate `scenario` and write its primary radius and mass.
+///
+/// # Safety
+/// `radius` and `mass` NULL or writable.
+unsafe fn write_primary(
+    scenario: &Scenario,
+    radius: *mut f64,
+    mass: *mut f64,
+) -> Result<(), Failure> {
+    scenario.validate().map_err(scenario_failure)?;
+    let (b0, m0) = (scenario.primary_radius(), scenario.primary_mass());
+    if !(b0.is_finite() && b0 > 0.0 && m0.is_finite()) {
+        return Err(scenario_failure(format!(
+            "cloud: primary radius {b0:e} m (give cloud.radius [m], a finite radius > 0)"
+        )));
+    }
+    // SAFETY: each is NULL (skipped) or writable (the caller's contract).
+    unsafe {
+        if let Some(r) = radius.as_mut() {
+            *r = b0;
+        }
+        if let Some(m) = mass.as_mut() {
+            *m = m0;
+        }
+    }
+    Ok(())
+}
+
 /// Free a coupling (NULL is ignored). No cell call may be running on it.
 ///
 /// # Safety
@@ -205,6 +280,7 @@ unsafe fn make(
     c.replicas = options.replicas;
     c.keep_bodies = options.keep_bodies;
     c.kernel = options.kernel;
+    c.persist = options.persist;
     c.check()?;
     Ok(c)
 }

@@ -3,8 +3,10 @@
 //!
 //! Names (docs/coupling.md lists their units): per class `number_rate`, `mass_rate`,
 //! `momentum_rate` (3 per class), `number_density`, `mass_density`, `velocity` (3 per
-//! class), `temperature`, `class_granular_temperature`, `present`; per cell
-//! `granular_temperature`, `gas_momentum_rate` (3), `force_work_rate`,
+//! class), `temperature`, `class_granular_temperature`, `present`, `granular_replicas`,
+//! `fluctuation_energy_rate`, `thermal_energy_rate`, `ignored` (1 for a trace class not
+//! lifted); per cell `total_number_rate`, `granular_temperature`, `gas_momentum_rate`
+//! (3), `force_work_rate`,
 //! `heat_loss_rate`, `reaction_heat_rate`, `dissipation_rate`, `fracture_energy_rate`,
 //! `impact_rate`, `bond_rate`, `bounce_rate`, `fragment_rate`, `bodies`; with the
 //! coupling's `kernel` option also `kernel_exposure`, `kernel_bonds`, `kernel_bounces`,

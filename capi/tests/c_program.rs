@@ -172,8 +172,67 @@ fn nulls_and_bad_lengths_are_refused_by_name() {
         );
         assert_eq!(status, AggloStatus::Config);
         assert!(message().contains("edges[1]"), "{}", message());
+        // A closed cell and a persistent one at once.
+        let mut both = agglo_coupling_options_default();
+        both.keep_bodies = true;
+        both.persist = true;
+        let status = agglo_coupling_load(path.as_ptr(), edges.as_ptr(), 2, &both, &mut coupling);
+        assert_eq!(status, AggloStatus::Config);
+        assert!(message().contains("persist"), "{}", message());
         assert!(coupling.is_null());
         assert_eq!(agglo_coupling_classes(std::ptr::null()), 0);
         agglo_coupling_free(std::ptr::null_mut());
+    }
+}
+
+/// The primary grain of a scenario, without a coupling: the same numbers a coupling
+/// gives, and a scenario with no primary grain refused by name.
+#[test]
+fn the_primary_grain_is_read_from_a_scenario() {
+    use agglo_c::coupling::*;
+    use agglo_c::error::agglo_last_error;
+    let path = crate_dir().join("../scenarios/ballistic_aggregation.json");
+    let path = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
+    let (mut b0, mut m0) = (0.0, 0.0);
+    let (mut cb, mut cm) = (0.0, 0.0);
+    let edges = [1e-30, 1.0];
+    let mut coupling = std::ptr::null_mut();
+    // SAFETY: every pointer is valid or NULL.
+    unsafe {
+        assert_eq!(
+            agglo_scenario_primary_load(path.as_ptr(), &mut b0, &mut m0),
+            AggloStatus::Ok
+        );
+        assert_eq!(
+            agglo_coupling_load(
+                path.as_ptr(),
+                edges.as_ptr(),
+                2,
+                std::ptr::null(),
+                &mut coupling
+            ),
+            AggloStatus::Ok
+        );
+        assert_eq!(
+            agglo_coupling_primary(coupling, &mut cb, &mut cm),
+            AggloStatus::Ok
+        );
+        agglo_coupling_free(coupling);
+        // ballistic_aggregation.json: b0 = 2.12e-4 m from its size ratio, ρ = 1000 kg/m³.
+        assert_eq!((b0, m0), (cb, cm));
+        assert!((b0 - 2.12e-4).abs() < 0.01 * 2.12e-4, "{b0:e}");
+        let want = 4.0 / 3.0 * std::f64::consts::PI * b0.powi(3) * 1000.0;
+        assert!((m0 - want).abs() <= 1e-12 * want, "{m0:e} vs {want:e}");
+        let json = c"{\"name\": \"x\", \"seed\": 1, \"box\": {\"half_width\": 0.01}, \
+            \"cloud\": {\"count\": 2, \"radius\": -1}, \"material\": {\"rho\": 1000, \
+            \"H0\": 1e-6, \"C\": 1000, \"theta0\": 300}, \"impact\": {\"a0\": 0.5, \
+            \"af\": 1, \"beta\": 1}, \"time\": {\"end\": 1}}";
+        let status = agglo_scenario_primary(json.as_ptr(), &mut b0, std::ptr::null_mut());
+        assert_eq!(status, AggloStatus::Config);
+        let message = std::ffi::CStr::from_ptr(agglo_last_error()).to_string_lossy();
+        assert!(
+            message.starts_with("scenario:") && message.contains("radius"),
+            "{message}"
+        );
     }
 }

@@ -34,6 +34,7 @@ class Scenario:
         mass: Optional[npt.NDArray[np.float64]] = None,
         temperature: Optional[npt.NDArray[np.float64]] = None,
         id: Optional[npt.NDArray[np.uint64]] = None,
+        separate: bool = False,
     ) -> Scenario: ...
     def derived(self) -> Dict[str, float]: ...
 
@@ -95,6 +96,7 @@ class Coupling:
         target_se: float = 0.05,
         min_bodies: int = 100,
         max_bodies: int = 100000,
+        persist: bool = False,
     ) -> None: ...
     @property
     def classes(self) -> int: ...

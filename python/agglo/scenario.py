@@ -138,12 +138,16 @@ class Scenario:
         mass=None,
         temperature=None,
         id=None,
+        separate: bool = False,
     ) -> "Scenario":
         """A copy whose cloud is the given bodies: ``position`` (N, 3) [m], and optional
         ``velocity`` (N, 3) [m/s], ``primaries``, ``radius`` [m], ``mass`` [kg],
         ``temperature`` [K] and ``id`` arrays of N values. Checked by the same
         placed-bodies check as ``cloud.bodies`` (inside the box, no overlaps, distinct
-        ids, consistent masses and radii), O(N)."""
+        ids, consistent masses and radii), O(N). A run's end state can hold a few
+        overlapping pairs (a merged body grows into a neighbour): ``separate=True`` first
+        pushes each such pair apart along its line of centres, keeping its centre of mass
+        (positions only change)."""
         import numpy as np
 
         def f64(a, ndim):
@@ -166,6 +170,7 @@ class Scenario:
                 f64(mass, 1),
                 f64(temperature, 1),
                 ids,
+                bool(separate),
             )
         )
 
@@ -182,6 +187,12 @@ class Scenario:
     def primary_radius(self) -> float:
         """The primary grain's radius b0 [m]."""
         return self._inner.derived()["primary_radius"]
+
+    @property
+    def primary_mass(self) -> float:
+        """The primary grain's mass (4/3) pi b0^3 rho [kg]: the unit a flow solver's class
+        edges are given in (``agglo.subgrid.Coupling``), without making a coupling."""
+        return self._inner.derived()["primary_mass"]
 
     @property
     def volume_fraction(self) -> float:

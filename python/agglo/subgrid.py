@@ -43,13 +43,21 @@ class CellOutput:
     Per class: ``number_rate`` [1/(m³ s)], ``mass_rate`` [kg/(m³ s)], ``momentum_rate``
     (classes, 3) [N/m³], ``number_density`` [1/m³], ``mass_density`` [kg/m³],
     ``velocity`` (classes, 3) [m/s], ``temperature`` [K], ``class_granular_temperature``
-    [m²/s²], ``present`` [replicas]. Per cell: ``granular_temperature``,
-    ``gas_momentum_rate`` (3), ``force_work_rate``, ``heat_loss_rate``,
-    ``reaction_heat_rate``, ``dissipation_rate``, ``fracture_energy_rate`` [W/m³],
-    ``impact_rate``, ``bond_rate``, ``bounce_rate``, ``fragment_rate`` [1/(m³ s)],
-    ``bodies`` [per box]. With ``Coupling(kernel=True)``: ``kernel_exposure`` [s/m³],
-    ``kernel_bonds``, ``kernel_bounces``, ``kernel_fragments`` (classes, classes), the
-    pooled sums of ``agglo kernel`` over the replicas (their ``se`` is NaN).
+    [m²/s²] (unbiased; NaN where no replica held two bodies of the class),
+    ``present`` and ``granular_replicas`` [replicas holding one, two bodies of the class],
+    ``fluctuation_energy_rate`` and ``thermal_energy_rate`` [W/m³] (transport
+    ½ρ·3T and Cρθ with them and energy closes), ``ignored`` (1 for a trace class that was
+    not lifted). Per cell: ``total_number_rate`` [1/(m³ s)] (the growth),
+    ``granular_temperature``, ``gas_momentum_rate`` (3), ``force_work_rate``,
+    ``heat_loss_rate``, ``reaction_heat_rate``, ``dissipation_rate``,
+    ``fracture_energy_rate`` [W/m³], ``impact_rate``, ``bond_rate``, ``bounce_rate``,
+    ``fragment_rate`` [1/(m³ s)], ``bodies`` [per box]. With ``Coupling(kernel=True)``:
+    ``kernel_exposure`` [s/m³], ``kernel_bonds``, ``kernel_bounces``,
+    ``kernel_fragments`` (classes, classes), the pooled sums of ``agglo kernel`` over the
+    replicas (their ``se`` is NaN).
+
+    A standard error covers replica noise only (not the bias of a finite box or Δt,
+    docs/coupling.md); count rates have a Poisson floor, and NaN means "not measured".
     """
 
     __slots__ = ("mean", "se", "units", "cell", "macro_step", "dt", "replicas", "box_volume")
@@ -93,17 +101,21 @@ class Coupling:
     class ``edges`` [kg], N = ``bodies`` per box (``None``: sized for a relative standard
     error ``target_se`` of the impact rate within [``min_bodies``, ``max_bodies``]), K =
     ``replicas`` boxes per cell, whether cells keep their bodies between macro steps
-    (a closed cell), and whether to pool the kernel sums.
+    (a closed cell, ``keep_bodies``) or keep them and adjust them to what transport
+    changed (``persist``: bodies added or removed, velocities shifted and rescaled per
+    class; with no transport the closed cell), and whether to pool the kernel sums.
     """
 
     def __init__(self, scenario, edges: Sequence[float], *, bodies: Optional[int] = 1000,
                  replicas: int = 4, keep_bodies: bool = False, kernel: bool = False,
-                 target_se: float = 0.05, min_bodies: int = 100, max_bodies: int = 100_000):
+                 target_se: float = 0.05, min_bodies: int = 100, max_bodies: int = 100_000,
+                 persist: bool = False):
         if not isinstance(scenario, Scenario):
             scenario = Scenario.load(scenario)
         self._c = _agglo.Coupling(scenario._inner, [float(e) for e in edges], bodies,
                                   int(replicas), bool(keep_bodies), bool(kernel),
-                                  float(target_se), int(min_bodies), int(max_bodies))
+                                  float(target_se), int(min_bodies), int(max_bodies),
+                                  bool(persist))
 
     @property
     def classes(self) -> int:

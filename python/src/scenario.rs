@@ -78,8 +78,10 @@ impl Scenario {
     /// This scenario with explicit bodies from arrays (N rows each): `position` (N, 3)
     /// [m] and, optionally, `velocity` (N, 3) [m/s], `primaries`, `radius` [m], `mass`
     /// [kg], `temperature` [K], `id`. Checked by the placed-bodies check of
-    /// `cloud.bodies` (inside the box, no overlaps, consistent mass and radius).
-    #[pyo3(signature = (position, velocity=None, primaries=None, radius=None, mass=None, temperature=None, id=None))]
+    /// `cloud.bodies` (inside the box, no overlaps, consistent mass and radius); with
+    /// `separate`, overlapping pairs (a run's end state can hold some) are first pushed
+    /// apart (`agglo::separate::separate_overlaps`).
+    #[pyo3(signature = (position, velocity=None, primaries=None, radius=None, mass=None, temperature=None, id=None, separate=false))]
     #[allow(clippy::too_many_arguments)]
     fn with_bodies(
         &self,
@@ -90,6 +92,7 @@ impl Scenario {
         mass: Option<PyReadonlyArray1<'_, f64>>,
         temperature: Option<PyReadonlyArray1<'_, f64>>,
         id: Option<PyReadonlyArray1<'_, u64>>,
+        separate: bool,
     ) -> PyResult<Self> {
         guard(|| {
             let position = position.as_array();
@@ -137,6 +140,9 @@ impl Scenario {
             inner.cloud.from_file = None;
             inner.cloud.bodies = bodies;
             inner.cloud.count = n;
+            if separate {
+                agglo::separate::separate_overlaps(&mut inner).map_err(scenario_error)?;
+            }
             inner.validate().map_err(scenario_error)?;
             Ok(Self { inner })
         })
@@ -148,10 +154,11 @@ impl Scenario {
         serde_json::to_string_pretty(&Inner::json_schema()).map_err(|e| agglo_error(e.into()))
     }
 
-    /// Derived figures: the primary radius b0 [m] and the volume fraction.
+    /// Derived figures: the primary radius b0 [m] and mass [kg] and the volume fraction.
     fn derived<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         d.set_item("primary_radius", self.inner.primary_radius())?;
+        d.set_item("primary_mass", self.inner.primary_mass())?;
         d.set_item("volume_fraction", self.inner.volume_fraction())?;
         d.set_item("event_core", self.inner.uses_event_core())?;
         Ok(d)

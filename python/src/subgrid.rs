@@ -156,9 +156,10 @@ fn output_dict<'py>(py: Python<'py>, out: &CellOutput) -> PyResult<Bound<'py, Py
 impl Coupling {
     /// A coupling of `scenario` on the class `edges` [kg]: N = `bodies` per box (or,
     /// with `bodies=None`, bodies enough for a relative standard error `target_se` of
-    /// the cell's impact rate, within [`min_bodies`, `max_bodies`]), K = `replicas`.
+    /// the cell's impact rate, within [`min_bodies`, `max_bodies`]), K = `replicas`;
+    /// `keep_bodies` (a closed cell) or `persist` (kept boxes adjusted to transport).
     #[new]
-    #[pyo3(signature = (scenario, edges, bodies=Some(1000), replicas=4, keep_bodies=false, kernel=false, target_se=0.05, min_bodies=100, max_bodies=100_000))]
+    #[pyo3(signature = (scenario, edges, bodies=Some(1000), replicas=4, keep_bodies=false, kernel=false, target_se=0.05, min_bodies=100, max_bodies=100_000, persist=false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         scenario: &Scenario,
@@ -170,6 +171,7 @@ impl Coupling {
         target_se: f64,
         min_bodies: u32,
         max_bodies: u32,
+        persist: bool,
     ) -> PyResult<Self> {
         guard(|| {
             let mut c = subgrid::Coupling::new(scenario.inner.clone(), edges)
@@ -185,6 +187,7 @@ impl Coupling {
             c.replicas = replicas;
             c.keep_bodies = keep_bodies;
             c.kernel = kernel;
+            c.persist = persist;
             c.check().map_err(|e| subgrid_error(&e))?;
             Ok(Self { inner: c })
         })

@@ -74,6 +74,12 @@ def test_with_bodies_is_checked_like_cloud_bodies(scenarios):
     # Overlapping bodies are refused, naming the field.
     with pytest.raises(agglo.ScenarioError, match="cloud.bodies"):
         s.with_bodies(np.array([[0.0, 0, 0], [0.5 * b0, 0, 0]]))
+    # ... unless asked to separate them (an end state's few overlaps): pushed apart to
+    # contact along x, their centre of mass (equal masses: the midpoint) kept.
+    apart = s.with_bodies(np.array([[0.0, 0, 0], [0.5 * b0, 0, 0]]), separate=True)
+    x = [b["position"][0] for b in apart.cloud.bodies]
+    assert x[1] - x[0] == pytest.approx(2 * b0, rel=1e-8)
+    assert (x[0] + x[1]) / 2 == pytest.approx(0.25 * b0, rel=1e-12)
     # Outside the box.
     d = s.box.half_width
     with pytest.raises(agglo.ScenarioError, match="cloud.bodies"):

@@ -19,7 +19,7 @@ BASE = pathlib.Path(__file__).resolve().parents[2] / "scenarios/ballistic_aggreg
 
 def edges_of(base):
     """Classes by primaries: 1, 2, 3-4, 5-8, 9 and up [kg]."""
-    m0 = Coupling(base, [1e-30, 1.0]).primary[1]
+    m0 = base.primary_mass
     return np.array([0.5, 1.5, 2.5, 4.5, 8.5, 1e9]) * m0
 
 
@@ -146,3 +146,44 @@ def test_the_kernel_sums_count_the_bonds_of_every_replica():
     assert bonds.sum() > 0 and bonds.sum() == pytest.approx(per_boxes, rel=1e-9)
     assert np.all(np.tril(bonds, -1) == 0)  # filled for i <= j only
     assert (out["kernel_exposure"] > 0).any()
+
+
+def test_energy_rates_close_and_the_primary_comes_from_the_scenario(coupling):
+    base = agglo.Scenario.load(BASE)
+    assert (base.primary_radius, base.primary_mass) == coupling.primary
+    inputs = {k: (v[0] if isinstance(v, np.ndarray) else v)
+              for k, v in monomers(coupling, [0.05]).items()}
+    out, _ = coupling.advance(3, 0, **inputs)
+    dt = inputs["dt"]
+    # The solver's mean-flow energy 1/2 |p|^2 / rho per class before and after the rates
+    # (all at rest here, so only the rates' own momentum counts).
+    rho0 = inputs["number_density"] * inputs["mass"]
+    rho1 = rho0 + dt * out["mass_rate"]
+    p1 = dt * out["momentum_rate"]
+    mean_flow = np.where(rho1 > 0, 0.5 * (p1**2).sum(axis=1) / np.where(rho1 > 0, rho1, 1), 0)
+    kinetic = mean_flow.sum() / dt + out["fluctuation_energy_rate"].sum()
+    d = out["dissipation_rate"]
+    assert d > 0
+    # Kinetic energy: field work less dissipation, to rounding (1e-9 of the dissipation);
+    # thermal: the dissipation (sticky grains, no reaction heat, no cooling), to the
+    # rounding of the thermal sums C rho theta (1e-12 of them, some 1e-5 of D).
+    assert abs(kinetic - (out["force_work_rate"] - d)) <= 1e-9 * d
+    thermal_scale = 1000.0 * 300.0 * rho0.sum() / dt
+    assert abs(out["thermal_energy_rate"].sum() - d) <= 1e-12 * thermal_scale
+    assert out.units["fluctuation_energy_rate"] == "W/m^3"
+    assert "total_number_rate" in out.names() and not out["ignored"].any()
+
+
+def test_persistent_cells_take_up_what_transport_brings():
+    base = agglo.Scenario.load(BASE)
+    c = Coupling(base, edges_of(base), bodies=300, replicas=2, persist=True)
+    inputs = monomers(c, [0.04])
+    first, states = c.advance_cells(0, [3], **inputs)
+    # Transport doubles the monomers: the kept boxes get about 300 more bodies each
+    # (Poisson), on top of the ~290 they ended with.
+    doubled = dict(inputs, number_density=2 * inputs["number_density"])
+    second, _ = c.advance_cells(1, [3], states=states, **doubled)
+    assert second[0].box_volume == first[0].box_volume
+    assert 500 < second[0]["bodies"] < 700
+    with pytest.raises(agglo.ScenarioError, match="persist"):
+        Coupling(base, edges_of(base), keep_bodies=True, persist=True)

@@ -9,16 +9,19 @@ use serde::{Deserialize, Serialize};
 use crate::farm::Workers;
 use crate::kernel::Accumulator;
 
+use super::adjust::apply_rates;
 use super::cell::{CellState, KeptBox, ReplicaRun, STATE_VERSION, run_replica};
 use super::config::Coupling;
 use super::error::SubgridError;
 use super::exchange::{CellInput, CellOutput};
-use super::lift::{box_volume, check_box, check_input};
+use super::lift::{box_volume, check_box, check_input, is_trace};
 use super::restrict::combine;
 
 /// What a cell's step starts from, once its input and state are checked.
 struct Prepared {
     volume: f64,
+    /// The classes lifting skips as traces (none for kept boxes).
+    ignored: Vec<bool>,
     time: f64,
     steps: u64,
 }
@@ -34,16 +37,25 @@ fn prepare(
     if let Some(s) = state {
         s.check(c, cell)?;
     }
-    let kept = state.filter(|s| c.keep_bodies && s.keeps_bodies());
+    let kept = state.filter(|s| (c.keep_bodies || c.persist) && s.keeps_bodies());
     let volume = match kept {
         Some(s) => s.volume,
         None => box_volume(c, cell, input)?,
     };
-    if kept.is_none() {
-        check_box(c, cell, input, volume)?;
-    }
+    let ignored = match kept {
+        Some(_) if !c.persist => vec![false; input.classes.len()],
+        _ => {
+            check_box(c, cell, input, volume)?;
+            input
+                .classes
+                .iter()
+                .map(|k| is_trace(k.number_density, volume))
+                .collect()
+        }
+    };
     Ok(Prepared {
         volume,
+        ignored,
         time: state.map_or(0.0, |s| s.time),
         steps: state.map_or(0, |s| s.macro_steps),
     })
@@ -63,9 +75,9 @@ fn finish(
         c,
         cell,
         macro_step,
-        input.dt,
+        input,
         prepared.volume,
-        c.base.field.gravity,
+        &prepared.ignored,
         &measured,
     );
     if c.kernel {
@@ -91,6 +103,7 @@ fn finish(
         time: prepared.time + input.dt,
         volume: prepared.volume,
         boxes,
+        expected: c.persist.then(|| apply_rates(c, input, &output)),
     };
     Ok((output, state))
 }
@@ -112,7 +125,17 @@ pub fn advance_cell(
     let runs = (0..c.replicas)
         .map(|r| {
             let kept = kept_box(c, state, r);
-            run_replica(c, cell, macro_step, r, input, prepared.volume, kept)
+            let expected = state.and_then(|s| s.expected.as_ref());
+            run_replica(
+                c,
+                cell,
+                macro_step,
+                r,
+                input,
+                prepared.volume,
+                kept,
+                expected,
+            )
         })
         .collect::<Result<Vec<_>, _>>()?;
     finish(c, cell, macro_step, input, &prepared, runs)
@@ -120,7 +143,7 @@ pub fn advance_cell(
 
 fn kept_box<'a>(c: &Coupling, state: Option<&'a CellState>, replica: u32) -> Option<&'a KeptBox> {
     state
-        .filter(|_| c.keep_bodies)
+        .filter(|_| c.keep_bodies || c.persist)
         .and_then(|s| s.boxes.get(replica as usize))
 }
 
@@ -133,6 +156,8 @@ pub struct ReplicaTask {
     pub input: CellInput,
     pub volume: f64,
     pub kept: Option<KeptBox>,
+    /// With `persist`: the cell's remembered state the input is measured against.
+    pub expected: Option<CellInput>,
 }
 
 /// The work of one task (the same function on every thread and rank).
@@ -145,6 +170,7 @@ pub fn run_task(c: &Coupling, t: &ReplicaTask) -> Result<ReplicaRun, SubgridErro
         &t.input,
         t.volume,
         t.kept.as_ref(),
+        t.expected.as_ref(),
     )
 }
 
@@ -177,6 +203,7 @@ pub fn advance_cells(
                 input: input.clone(),
                 volume: p.volume,
                 kept: kept_box(c, state.as_ref(), r).cloned(),
+                expected: state.as_ref().and_then(|s| s.expected.clone()),
             });
         }
     }

@@ -10,14 +10,16 @@ use crate::kernel::{Accumulator, Sampling, Window};
 use crate::scenario::Scenario;
 use agglo_engine::restart::RestartSnapshot;
 
+use super::adjust::adjusted_box;
 use super::config::Coupling;
 use super::error::SubgridError;
 use super::exchange::CellInput;
 use super::lift::{gas_field, lift, replica_seed};
 use super::restrict::{ClassSums, Replica};
+use crate::resources::{Counters, EnergyLedger};
 
 /// Layout version of [`CellState::to_bytes`]; bumped when it changes.
-pub const STATE_VERSION: u32 = 1;
+pub const STATE_VERSION: u32 = 2;
 
 /// A kept box between macro steps: the scene it was lifted as and the restart
 /// snapshot at the end of the last step (engine/restart.rs), from which the next step
@@ -44,6 +46,9 @@ pub struct CellState {
     pub(crate) time: f64,
     pub(crate) volume: f64,
     pub(crate) boxes: Vec<KeptBox>,
+    /// With `persist`: what the flow solver holds after applying the last step's rates
+    /// ([`super::apply_rates`]), against which the next input's transport is measured.
+    pub(crate) expected: Option<CellInput>,
 }
 
 impl CellState {
@@ -96,7 +101,7 @@ impl CellState {
         if self.cell != cell {
             return bad(format!("it is cell {}'s state", self.cell));
         }
-        if c.keep_bodies && self.boxes.len() != c.replicas as usize {
+        if (c.keep_bodies || c.persist) && self.boxes.len() != c.replicas as usize {
             return bad(format!(
                 "it holds {} boxes; the coupling keeps {} replicas' bodies",
                 self.boxes.len(),
@@ -118,8 +123,36 @@ pub struct ReplicaRun {
     pub kept: Option<KeptBox>,
 }
 
+/// A box whose Poisson draw held no body (probability e^−N): it saw nothing, and
+/// counts as such (every sum and event 0), since dropping it would bias every rate up.
+/// A closed cell cannot keep an empty box: refused, asking for a larger N.
+fn empty_box(
+    c: &Coupling,
+    cell: u64,
+    replica: u32,
+    volume: f64,
+) -> Result<ReplicaRun, SubgridError> {
+    if c.keep_bodies || c.persist {
+        return Err(SubgridError::input(
+            cell,
+            "bodies",
+            format!("replica {replica}'s box of {volume:e} m³ drew no body"),
+            "a closed cell keeps its boxes: raise N",
+        ));
+    }
+    let nothing = ClassSums::of(c, &[]);
+    let zero = (EnergyLedger::default(), Counters::default());
+    Ok(ReplicaRun {
+        measured: Replica::new(nothing.clone(), nothing, &zero.0, &zero.0, &zero.1, &zero.1),
+        kernel: None,
+        kept: None,
+    })
+}
+
 /// Advance replica `replica` of `cell` over `input.dt`: lift a new box of `volume`
-/// [m³] (seeded by [`replica_seed`]), or continue `kept`.
+/// [m³] (seeded by [`replica_seed`]), or continue `kept` — as it was, or, with
+/// `persist` and an `expected` state the input differs from, adjusted (adjust.rs).
+#[allow(clippy::too_many_arguments)] // the task's fields, as ReplicaTask holds them
 pub fn run_replica(
     c: &Coupling,
     cell: u64,
@@ -128,6 +161,7 @@ pub fn run_replica(
     input: &CellInput,
     volume: f64,
     kept: Option<&KeptBox>,
+    expected: Option<&CellInput>,
 ) -> Result<ReplicaRun, SubgridError> {
     let fail = |reason: String| SubgridError::Run {
         cell,
@@ -141,24 +175,57 @@ pub fn run_replica(
                 SubgridError::Run { reason, .. } => fail(reason),
                 other => other,
             })?;
+            if s.cloud.bodies.is_empty() {
+                return empty_box(c, cell, replica, volume);
+            }
             (s, None)
         }
         Some(kept) => {
-            let mut s = Scenario::from_json(&kept.scenario).map_err(|e| SubgridError::State {
-                cell,
-                reason: format!("replica {replica}: the kept scene does not read: {e}"),
-            })?;
             let snapshot =
                 RestartSnapshot::decode(&kept.snapshot).map_err(|e| SubgridError::State {
                     cell,
                     reason: format!("replica {replica}: {e}"),
                 })?;
+            if let Some(e) = expected.filter(|e| e.classes != input.classes) {
+                // Transport changed the cell: the box adjusted to it (adjust.rs).
+                let seed = replica_seed(c.base.seed, cell, macro_step, replica);
+                let s = adjusted_box(c, cell, input, e, volume, seed, &snapshot.bodies).map_err(
+                    |e| match e {
+                        SubgridError::Run { reason, .. } => fail(reason),
+                        other => other,
+                    },
+                )?;
+                if s.cloud.bodies.is_empty() {
+                    return empty_box(c, cell, replica, volume);
+                }
+                return run_scene(c, cell, replica, s, None);
+            }
+            let mut s = Scenario::from_json(&kept.scenario).map_err(|e| SubgridError::State {
+                cell,
+                reason: format!("replica {replica}: the kept scene does not read: {e}"),
+            })?;
             // The gas of this step; the box's clock runs on from the snapshot's time.
             s.material.theta0 = input.gas.temperature;
             s.field = gas_field(c, input);
             s.time.end = snapshot.time() + input.dt;
             (s, Some(snapshot))
         }
+    };
+    run_scene(c, cell, replica, scenario, snapshot)
+}
+
+/// Run `scenario` over its end time (from `snapshot`, when given) and measure it.
+fn run_scene(
+    c: &Coupling,
+    cell: u64,
+    replica: u32,
+    scenario: Scenario,
+    snapshot: Option<RestartSnapshot>,
+) -> Result<ReplicaRun, SubgridError> {
+    let fail = |reason: String| SubgridError::Run {
+        cell,
+        replica,
+        reason,
     };
     let mut sim = crate::kernel::simulation(&scenario).map_err(|e| fail(e.to_string()))?;
     if let Some(snapshot) = &snapshot {
@@ -196,7 +263,7 @@ pub fn run_replica(
         &counters0,
         &sim.counters(),
     );
-    let kept = c.keep_bodies.then(|| {
+    let kept = (c.keep_bodies || c.persist).then(|| {
         // The run is complete: every body is at the end time (Simulation::run_until).
         let snapshot = agglo_engine::restart::capture(sim.world_mut());
         KeptBox {

@@ -49,6 +49,11 @@ pub struct Coupling {
     /// only the input's gas state and Δt (its classes are still checked, not used).
     /// Otherwise every step lifts afresh.
     pub keep_bodies: bool,
+    /// Keep each cell's boxes between macro steps and adjust them to the input by what
+    /// transport changed since the last step's rates were applied (issue 37 item 3,
+    /// [`super::apply_rates`]): bodies removed or added, velocities shifted and
+    /// rescaled, per class. With no transport, the closed cell. Excludes `keep_bodies`.
+    pub persist: bool,
     /// Pool the kernel counts and exposure of the boxes into [`super::CellOutput::kernel`].
     pub kernel: bool,
 }
@@ -68,6 +73,7 @@ impl Coupling {
             bodies: BoxSize::Bodies(1000),
             replicas: 4,
             keep_bodies: false,
+            persist: false,
             kernel: false,
         };
         c.check()?;
@@ -88,9 +94,7 @@ impl Coupling {
 
     /// Primary grain radius b0 [m] and mass m0 [kg] of the base scenario.
     pub fn primary(&self) -> (f64, f64) {
-        let b0 = self.base.primary_radius();
-        let m0 = 4.0 / 3.0 * std::f64::consts::PI * b0.powi(3) * self.base.material.rho;
-        (b0, m0)
+        (self.base.primary_radius(), self.base.primary_mass())
     }
 
     /// The kernel accumulator's grid: the coupling's edges with the open ends closed
@@ -176,6 +180,14 @@ impl Coupling {
                     ));
                 }
             }
+        }
+        if self.keep_bodies && self.persist {
+            return Err(SubgridError::config(
+                "persist",
+                "true with keep_bodies",
+                "one of the two: keep_bodies ignores the input after the first step, persist \
+                 adjusts the kept boxes to it",
+            ));
         }
         if !(1..=MAX_REPLICAS).contains(&self.replicas) {
             return Err(SubgridError::config(

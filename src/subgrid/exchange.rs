@@ -56,7 +56,10 @@ pub struct CellInput {
 
 /// An ensemble figure: the mean over the replicas that define it, and the standard
 /// error of that mean, s/√K (s the sample standard deviation over those replicas).
-/// With a single replica the standard error is NaN (it cannot be estimated).
+/// With a single replica the standard error is NaN (it cannot be estimated); with none
+/// the mean is NaN too ("not measured"). A count rate ([`Stat::of_counts`]) has a
+/// Poisson floor. The standard error covers replica noise only, not the biases of a
+/// finite box or a finite Δt (docs/coupling.md).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Stat {
     pub mean: f64,
@@ -65,12 +68,12 @@ pub struct Stat {
 
 impl Stat {
     /// Mean and standard error of `values` (summed in order: the same bits for the
-    /// same values). Empty: mean 0, se NaN.
+    /// same values). Empty: mean and se NaN (not measured).
     pub fn of(values: &[f64]) -> Self {
         let k = values.len();
         if k == 0 {
             return Self {
-                mean: 0.0,
+                mean: f64::NAN,
                 se: f64::NAN,
             };
         }
@@ -83,6 +86,28 @@ impl Stat {
             mean,
             se: (var / k as f64).sqrt(),
         }
+    }
+
+    /// A rate or density made of counts: `values[r]` = `counts[r]` × `scale` in replica
+    /// r (`counts` the bodies or events behind it, their magnitude when a change can be
+    /// negative). Its standard error is at least the Poisson floor
+    /// √(Σ|counts|) · `scale` / K, so replicas that happen to agree (a rare class, a
+    /// rare event in few boxes) do not claim certainty; with no count in any replica
+    /// nothing can be said of the spread and the standard error is NaN. One replica:
+    /// NaN, as [`Stat::of`].
+    pub fn of_counts(values: &[f64], counts: &[f64], scale: f64) -> Self {
+        let mut s = Self::of(values);
+        let k = values.len();
+        if k < 2 {
+            return s;
+        }
+        let events: f64 = counts.iter().map(|c| c.abs()).sum();
+        s.se = if events == 0.0 {
+            f64::NAN
+        } else {
+            s.se.max(events.sqrt() * scale.abs() / k as f64)
+        };
+        s
     }
 }
 
@@ -107,12 +132,34 @@ pub struct ClassOutput {
     pub velocity: [Stat; 3],
     /// Mass-weighted mean temperature of the class's bodies at the end [K].
     pub temperature: Stat,
-    /// Granular temperature at the end [m²/s²]: the mass-weighted variance of a
-    /// velocity component about the class's mean velocity.
+    /// Granular temperature at the end [m²/s²]: the unbiased mass-weighted variance of
+    /// a velocity component about the class's mean velocity, Σm|v − ū|² / (3(M −
+    /// Σm²/M)) (Bessel's N/(N − 1) for equal masses), in each replica where the class
+    /// holds at least two bodies, averaged over those (`granular_replicas`); NaN where
+    /// none did (a one-body class has no measurable spread).
     pub granular_temperature: Stat,
     /// Replicas in which the class holds bodies at the end (the states above are means
-    /// over these; with 0 they are 0 and their standard errors NaN).
+    /// over these; with 0 they are NaN, "not measured").
     pub present: u32,
+    /// Replicas in which the class holds at least two bodies at the end (the granular
+    /// temperature's mean is over these).
+    pub granular_replicas: u32,
+    /// Rate of the class's fluctuation (granular) energy density [W/m³]: its kinetic
+    /// energy rate less the change of its mean-flow energy ½|p_k|²/ρ_k that the
+    /// handed-back mass and momentum rates make from the input's ρ_k = n_k m_k,
+    /// p_k = ρ_k u_k (an emptied class, ρ_k + Δt·rate ≤ 0, has none). Over the classes,
+    /// fluctuation plus mean-flow energy change exactly as the field's work less the
+    /// impact dissipation: a solver transporting ½ρ_k·3T_k with this rate closes its
+    /// kinetic energy (docs/model.md §15).
+    pub fluctuation_energy_rate: Stat,
+    /// Rate of the class's thermal energy density C Σmθ / V [W/m³]; over the classes it
+    /// is the dissipation, reaction heat, fracture energy and cooling loss rates'
+    /// balance D + R − Z − L.
+    pub thermal_energy_rate: Stat,
+    /// The class was a trace (fewer than [`super::TRACE_BODIES`] bodies expected per
+    /// box) and was not lifted: its rates are 0 from it alone (merges elsewhere may
+    /// still feed it).
+    pub ignored: bool,
 }
 
 /// What a cell hands back after a macro step (micro → macro); see [`ClassOutput`] for
@@ -130,13 +177,16 @@ pub struct CellOutput {
     /// Bodies per box at the start of the step.
     pub bodies: Stat,
     pub classes: Vec<ClassOutput>,
-    /// Source rate of the total number density [1/(m³ s)] (the cell's growth: minus
+    /// Source rate of the total number density [1/(m³ s)], the column
+    /// `total_number_rate` of [`Self::columns`] (the cell's growth: minus
     /// the bodies merges removed, plus the pieces fragmentations made); its standard
     /// error is over the replicas' totals (the classes' rates are correlated, so theirs
     /// do not add up to it).
     pub number_rate: Stat,
-    /// Granular temperature of all bodies at the end [m²/s²]: the mass-weighted
-    /// variance of a velocity component about each body's class mean.
+    /// Granular temperature of all bodies at the end [m²/s²]: the unbiased
+    /// mass-weighted variance of a velocity component about each body's class mean,
+    /// Σ_k Σm|v − ū_k|² / (3 Σ_k (M_k − Σm²/M_k)) (one-body classes add nothing to
+    /// either sum); NaN in a replica where no class holds two bodies.
     pub granular_temperature: Stat,
     /// Momentum the gas received from the bodies through drag [N/m³]: minus the drag's
     /// impulse on them (the field's impulse less M g Δt).
@@ -235,6 +285,18 @@ impl CellOutput {
             }),
             per_class("present", "replicas", |c| Stat {
                 mean: c.present as f64,
+                se: 0.0,
+            }),
+            per_class("granular_replicas", "replicas", |c| Stat {
+                mean: c.granular_replicas as f64,
+                se: 0.0,
+            }),
+            per_class("fluctuation_energy_rate", "W/m^3", |c| {
+                c.fluctuation_energy_rate
+            }),
+            per_class("thermal_energy_rate", "W/m^3", |c| c.thermal_energy_rate),
+            per_class("ignored", "0 or 1", |c| Stat {
+                mean: f64::from(u8::from(c.ignored)),
                 se: 0.0,
             }),
             scalar("total_number_rate", "1/(m^3 s)", self.number_rate),

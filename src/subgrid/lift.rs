@@ -1,14 +1,25 @@
 //! Lifting (docs/model.md §15): from a cell's size classes to a box of bodies.
 //!
+//! The box is a sample of the cell's ideal gas: each class a Poisson number of bodies,
+//! each body's velocity an independent Maxwellian draw. Then every pair rate of the box
+//! is the cell's at the first instant, in expectation: E[N_i N_j] = λ_i λ_j and
+//! E[N_i (N_i − 1)] = λ_i² for Poisson counts (random rounding gives λ² − λ + f(1 − f)),
+//! and independent velocities give each pair the relative velocity the cell's
+//! distribution gives it (subtracting a class's sample mean, as this lift did before
+//! issue 37, shrinks every body's variance by (N_k − 1)/N_k and leaves a one-body class
+//! at rest: a collector-monomer kernel 0.80 of the cell's with 1.5 collectors per box,
+//! examples/lifting_bias.py).
+//!
 //! 1. **Box size.** V = N / Σ n_k for N bodies ([`BoxSize::Bodies`]), or the N whose
-//!    expected impacts give the target standard error ([`BoxSize::TargetSe`]).
-//! 2. **Counts.** N_k = ⌊n_k V⌋ plus one with probability n_k V − ⌊n_k V⌋ (random
-//!    rounding: E[N_k] = n_k V, so no class is dropped on average, however dilute).
-//! 3. **Placement.** Random sequential addition without overlap in the periodic cube,
+//!    expected impacts give the target standard error ([`BoxSize::TargetSe`]), raised
+//!    to the smallest box the cell's largest drawn class fits.
+//! 2. **Traces.** A class expecting fewer than [`TRACE_BODIES`] bodies per box is not
+//!    lifted (its rates are 0 and the output flags it): it neither fits nor refuses.
+//! 3. **Counts.** N_k Poisson with mean n_k V.
+//! 4. **Placement.** Random sequential addition without overlap in the periodic cube,
 //!    largest bodies first, over a cell grid (O(N) for the volume fractions allowed).
-//! 4. **Velocities.** u_k plus Maxwellian fluctuations of variance T_k per component,
-//!    shifted so that each class's mean is u_k to rounding (the class momentum
-//!    n_k m_k u_k V is then what the box holds); temperatures θ_k.
+//! 5. **Velocities.** u_k plus independent Maxwellian fluctuations of variance T_k per
+//!    component; temperatures θ_k.
 //!
 //! Every draw comes from one generator seeded by [`replica_seed`], so a box depends only
 //! on (base seed, cell, macro step, replica) and the input: never on which thread or
@@ -36,6 +47,18 @@ pub const MAX_VOLUME_FRACTION: f64 = 0.3;
 /// must be large against its bodies, or a body meets its own image's neighbours).
 pub const MAX_DIAMETER_PER_SIDE: f64 = 0.25;
 
+/// A class expecting fewer bodies than this per box is a trace: not lifted, flagged in
+/// the output ([`super::ClassOutput::ignored`]). Lifting it would draw a body in at most
+/// one box in a thousand, so the rates it could give are far below any replica noise;
+/// refusing the cell for it (a trace of large bodies does not fit a small box) would
+/// stop a flow solver whose transport leaves such traces in every cell.
+pub const TRACE_BODIES: f64 = 1e-3;
+
+/// True when class input `n` [1/m³] is a trace in a box of `volume` [m³].
+pub fn is_trace(n: f64, volume: f64) -> bool {
+    n > 0.0 && n * volume < TRACE_BODIES
+}
+
 /// The seed of replica `replica` of cell `cell` at macro step `macro_step`:
 /// `derive_seed([base, 0x73756267, cell, macro_step, replica])`, the splitmix64 chain
 /// of [`crate::inverse::ensemble::derive_seed`].
@@ -44,7 +67,7 @@ pub fn replica_seed(base: u64, cell: u64, macro_step: u64, replica: u32) -> u64 
 }
 
 /// A generator of its own: splitmix64 over a counter (as the kernel's samples).
-struct Stream(u64);
+pub(crate) struct Stream(pub(crate) u64);
 
 impl Stream {
     fn next_u64(&mut self) -> u64 {
@@ -52,15 +75,75 @@ impl Stream {
         splitmix64(self.0)
     }
     /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
+    pub(crate) fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
     /// Standard normal (Box–Muller, one value per two uniforms).
-    fn normal(&mut self) -> f64 {
+    pub(crate) fn normal(&mut self) -> f64 {
         let u1 = 1.0 - self.uniform(); // (0, 1]
         let u2 = self.uniform();
         (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
     }
+    /// Poisson with mean `lambda` ≥ 0: inversion below 10, Hörmann's transformed
+    /// rejection (PTRS, 1993; as NumPy) above, exact in both.
+    pub(crate) fn poisson(&mut self, lambda: f64) -> u64 {
+        if lambda <= 0.0 {
+            return 0;
+        }
+        if lambda < 10.0 {
+            let u = self.uniform();
+            let (mut k, mut p) = (0u64, (-lambda).exp());
+            let mut cdf = p;
+            // The tail past 200 terms is below 1e-100 for λ < 10.
+            while u >= cdf && k < 200 {
+                k += 1;
+                p *= lambda / k as f64;
+                cdf += p;
+            }
+            return k;
+        }
+        let slam = lambda.sqrt();
+        let loglam = lambda.ln();
+        let b = 0.931 + 2.53 * slam;
+        let a = -0.059 + 0.02483 * b;
+        let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
+        let vr = 0.9277 - 3.6224 / (b - 2.0);
+        loop {
+            let u = self.uniform() - 0.5;
+            let v = self.uniform();
+            let us = 0.5 - u.abs();
+            let k = ((2.0 * a / us + b) * u + lambda + 0.43).floor();
+            if us >= 0.07 && v <= vr {
+                return k as u64;
+            }
+            if k < 0.0 || (us < 0.013 && v > us) {
+                continue;
+            }
+            let lhs = v.ln() + inv_alpha.ln() - (a / (us * us) + b).ln();
+            if lhs <= -lambda + k * loglam - ln_factorial(k) {
+                return k as u64;
+            }
+        }
+    }
+}
+
+/// ln k! for a whole k ≥ 0: summed below 16, Stirling's series above (error < 1e-13).
+fn ln_factorial(k: f64) -> f64 {
+    if k < 16.0 {
+        return (2..=k as u64).map(|i| (i as f64).ln()).sum();
+    }
+    let x = k + 1.0;
+    let x2 = x * x;
+    (x - 0.5) * x.ln() - x + 0.5 * (2.0 * PI).ln() + 1.0 / (12.0 * x) - 1.0 / (360.0 * x * x2)
+        + 1.0 / (1260.0 * x * x2 * x2)
+}
+
+/// The counts of classes with expected counts `lambda` drawn from the stream seeded by
+/// `seed`, as [`lift`] draws them (Poisson, class by class) — for checking the count
+/// law without building boxes.
+pub fn draw_counts(seed: u64, lambda: &[f64]) -> Vec<u64> {
+    let mut rng = Stream(seed);
+    lambda.iter().map(|&l| rng.poisson(l)).collect()
 }
 
 /// The radius [m] of a body of mass `m` [kg] and density `rho` [kg/m³].
@@ -216,7 +299,10 @@ pub fn expected_impact_density(c: &Coupling, input: &CellInput) -> f64 {
     rate * input.dt
 }
 
-/// The box volume V [m³] for `input` (checked).
+/// The box volume V [m³] for `input` (checked): N / Σ n_k, with N given or picked for
+/// the target standard error; a picked N is raised to the smallest box every class that
+/// is not a trace in it fits (so `TargetSe` never picks a box that [`check_box`]
+/// refuses), and that box is refused only when it needs more than `max_bodies`.
 pub fn box_volume(c: &Coupling, cell: u64, input: &CellInput) -> Result<f64, SubgridError> {
     let total: f64 = input.classes.iter().map(|c| c.number_density).sum();
     let bodies = match c.bodies {
@@ -234,7 +320,27 @@ pub fn box_volume(c: &Coupling, cell: u64, input: &CellInput) -> Result<f64, Sub
             } else {
                 f64::INFINITY
             };
-            n.clamp(min_bodies as f64, max_bodies as f64).ceil()
+            let picked = n.clamp(min_bodies as f64, max_bodies as f64).ceil();
+            let need = fitting_volume(c, input, picked / total);
+            if need == picked / total {
+                picked
+            } else {
+                // A hair above, so that the side's cube root does not round below the fit.
+                let fitting = (need * total * (1.0 + 1e-9)).ceil();
+                if fitting > max_bodies as f64 {
+                    return Err(SubgridError::input(
+                        cell,
+                        "bodies.max_bodies",
+                        format!("{max_bodies}"),
+                        format!(
+                            "the cell's largest class needs a box of {fitting:.0} bodies (its \
+                             diameter at most {MAX_DIAMETER_PER_SIDE} of the side): raise \
+                             max_bodies"
+                        ),
+                    ));
+                }
+                fitting
+            }
         }
     };
     let volume = bodies / total;
@@ -249,9 +355,32 @@ pub fn box_volume(c: &Coupling, cell: u64, input: &CellInput) -> Result<f64, Sub
     Ok(volume)
 }
 
-/// Check that every class the cell holds fits a box of `volume` [m³] — whether or not
-/// a replica draws one of its bodies, so the answer does not depend on the draw — and
-/// that the cell's volume fraction allows random placement. Returns the volume fraction.
+/// The smallest volume ≥ `volume` [m³] in which every class that is not a trace fits
+/// (its diameter at most [`MAX_DIAMETER_PER_SIDE`] of the side). Growing the box can
+/// turn a trace into a class, so this repeats until nothing changes (at most once per
+/// class: the volume only grows).
+fn fitting_volume(c: &Coupling, input: &CellInput, volume: f64) -> f64 {
+    let rho = c.base.material.rho;
+    let mut v = volume;
+    for _ in 0..=input.classes.len() {
+        let need = input
+            .classes
+            .iter()
+            .filter(|k| k.number_density > 0.0 && !is_trace(k.number_density, v))
+            .map(|k| (2.0 * radius_of(k.mass, rho) / MAX_DIAMETER_PER_SIDE).powi(3))
+            .fold(v, f64::max);
+        if need == v {
+            break;
+        }
+        v = need;
+    }
+    v
+}
+
+/// Check that every class the cell holds, traces aside, fits a box of `volume` [m³] —
+/// whether or not a replica draws one of its bodies, so the answer does not depend on
+/// the draw — and that the cell's volume fraction allows random placement. Returns the
+/// volume fraction (traces included: they are part of the cell).
 pub fn check_box(
     c: &Coupling,
     cell: u64,
@@ -266,6 +395,10 @@ pub fn check_box(
             continue;
         }
         let b = radius_of(class.mass, rho);
+        fraction += class.number_density * 4.0 / 3.0 * PI * b * b * b;
+        if is_trace(class.number_density, volume) {
+            continue;
+        }
         if 2.0 * b > MAX_DIAMETER_PER_SIDE * side {
             return Err(SubgridError::input(
                 cell,
@@ -273,11 +406,13 @@ pub fn check_box(
                 format!("{:e}", class.mass),
                 format!(
                     "a body of radius {b:e} m is too large for the box of side {side:e} m \
-                     (diameter at most {MAX_DIAMETER_PER_SIDE} of the side): raise N"
+                     (diameter at most {MAX_DIAMETER_PER_SIDE} of the side; it expects \
+                     {:.3e} bodies per box, a trace below {TRACE_BODIES:e} would be \
+                     ignored): raise N",
+                    class.number_density * volume
                 ),
             ));
         }
-        fraction += class.number_density * 4.0 / 3.0 * PI * b * b * b;
     }
     if fraction > MAX_VOLUME_FRACTION {
         return Err(SubgridError::input(
@@ -290,7 +425,8 @@ pub fn check_box(
     Ok(fraction)
 }
 
-/// The box of replica `seed` for `input`, in a cube of volume `volume` [m³]: a
+/// The box of replica `seed` for `input`, in a cube of volume `volume` [m³] (with no
+/// body when the Poisson draws hold none, probability e^−N): a
 /// scenario with explicit bodies running over Δt. Input checked by [`check_input`];
 /// the scenario is validated when its simulation is built.
 pub fn lift(
@@ -301,28 +437,29 @@ pub fn lift(
     seed: u64,
 ) -> Result<Scenario, SubgridError> {
     let rho = c.base.material.rho;
-    let (b0, m0) = c.primary();
+    let m0 = c.primary().1;
     let side = volume.cbrt();
     let fraction = check_box(c, cell, input, volume)?;
     let mut rng = Stream(seed);
-    // Counts by random rounding, class by class in class order.
+    // Poisson counts, class by class in class order; traces get none (module doc).
     let counts: Vec<usize> = input
         .classes
         .iter()
         .map(|class| {
-            let x = class.number_density * volume;
-            let whole = x.floor();
-            whole as usize + usize::from(rng.uniform() < x - whole)
+            let lambda = class.number_density * volume;
+            let lambda = if is_trace(class.number_density, volume) {
+                0.0
+            } else {
+                lambda
+            };
+            rng.poisson(lambda) as usize
         })
         .collect();
     let total: usize = counts.iter().sum();
     if total == 0 {
-        return Err(SubgridError::input(
-            cell,
-            "bodies",
-            format!("a box of {volume:e} m³ drew no body"),
-            "raise N (the box holds Σ n_k V bodies on average)",
-        ));
+        // A Poisson draw of nothing (probability e^−N): an empty box, which the run
+        // skips (cell.rs); it counts as a box that saw nothing.
+        return Ok(box_scene(c, input, side, seed, Vec::new()));
     }
     // Largest first (ties in class order): the big ones find room before the box fills.
     let mut order: Vec<usize> = (0..c.classes()).filter(|&k| counts[k] > 0).collect();
@@ -353,32 +490,33 @@ pub fn lift(
                 radius: None,
             });
         }
-        // Fluctuations, then the class's mean fluctuation removed (all bodies of a class
-        // have one mass, so the mass-weighted mean is the plain mean).
+        // Independent Maxwellian draws about the class mean (module doc: no sample mean
+        // subtracted, so each body and each pair has the cell's velocity statistics).
         let sd = class.granular_temperature.sqrt();
-        let members = &mut bodies[first..];
-        let mut mean = [0.0; 3];
-        for body in members.iter_mut() {
-            let v = [0, 1, 2].map(|_| sd * rng.normal());
-            for x in 0..3 {
-                mean[x] += v[x];
-            }
-            body.velocity = Some(v);
-        }
-        let n = members.len() as f64;
-        for body in members.iter_mut() {
-            let v = body.velocity.as_mut().expect("set just above");
-            for x in 0..3 {
-                v[x] = class.velocity[x] + (v[x] - mean[x] / n);
-            }
+        for body in &mut bodies[first..] {
+            body.velocity = Some([0, 1, 2].map(|x| class.velocity[x] + sd * rng.normal()));
         }
     }
+    // Not validated here: building its simulation validates it (once, 12 % of a lift
+    // at P04's conditions).
+    Ok(box_scene(c, input, side, seed, bodies))
+}
+
+/// The base scenario as a box of side `side` [m] holding exactly `bodies`, seeded by
+/// `seed`, in the cell's gas, running over its Δt.
+pub(crate) fn box_scene(
+    c: &Coupling,
+    input: &CellInput,
+    side: f64,
+    seed: u64,
+    bodies: Vec<PlacedBody>,
+) -> Scenario {
     let mut s = c.base.clone();
     s.seed = seed;
     s.domain.half_width = 0.5 * side;
     s.cloud = Cloud {
-        count: total,
-        radius: Some(b0),
+        count: bodies.len(),
+        radius: Some(c.primary().0),
         size_ratio: None,
         v_mean: [0.0; 3],
         v_rel: None,
@@ -392,9 +530,7 @@ pub fn lift(
     s.field = gas_field(c, input);
     s.time.end = input.dt;
     s.output = Default::default();
-    // Not validated here: building its simulation validates it (once, 12 % of a lift
-    // at P04's conditions).
-    Ok(s)
+    s
 }
 
 /// Random sequential addition in the periodic cube [−D, D)³ over a uniform grid of
@@ -403,7 +539,7 @@ pub fn lift(
 /// about ten per body), so a failing attempt is made cheap: the own cell is looked at
 /// first, then the faces, edges and corners, and the periodic image of a neighbour
 /// cell is a fixed shift, not a rounding per pair.
-struct PlacementGrid {
+pub(crate) struct PlacementGrid {
     side: f64,
     cells: usize,
     /// Bodies [x, y, z, radius] per cell.
@@ -415,7 +551,7 @@ struct PlacementGrid {
 }
 
 impl PlacementGrid {
-    fn new(side: f64, min_cell: f64, bodies: usize) -> Self {
+    pub(crate) fn new(side: f64, min_cell: f64, bodies: usize) -> Self {
         // At most ~8 cells per body (a dilute box would otherwise allocate a huge
         // grid); wider cells stay correct, only slower.
         let by_size = (side / min_cell).floor().max(1.0);
@@ -454,7 +590,14 @@ impl PlacementGrid {
     }
 
     /// A free position for a body of radius `b`, or `None` when the attempts ran out.
-    fn place(&mut self, b: f64, rng: &mut Stream) -> Option<[f64; 3]> {
+    /// Mark a body of radius `b` at `p` (inside the cube) as present, unchecked: the
+    /// bodies a kept box already holds, before new ones are placed among them.
+    pub(crate) fn occupy(&mut self, p: [f64; 3], b: f64) {
+        let cell = self.index(self.cell_of(p));
+        self.members[cell].push([p[0], p[1], p[2], b]);
+    }
+
+    pub(crate) fn place(&mut self, b: f64, rng: &mut Stream) -> Option<[f64; 3]> {
         let half = 0.5 * self.side;
         while self.attempts_left > 0 {
             self.attempts_left -= 1;

@@ -23,7 +23,7 @@
 //! use agglo::subgrid::*;
 //! use agglo::prelude::*;
 //! let base = Scenario::load(std::path::Path::new("scenarios/ballistic_aggregation.json"))?;
-//! let m0 = 4.0 / 3.0 * std::f64::consts::PI * base.primary_radius().powi(3) * base.material.rho;
+//! let m0 = base.primary_mass();
 //! let coupling = Coupling::new(base, vec![0.5 * m0, 1.5 * m0, 2.5 * m0, 1e6 * m0])?;
 //! let class = |n: f64, m: f64| ClassInput {
 //!     number_density: n, mass: m, velocity: [0.0; 3], temperature: 300.0,
@@ -46,6 +46,7 @@
 //! cell's output is the same bytes for any thread or rank count and any order of
 //! submission.
 
+mod adjust;
 mod batch;
 mod cell;
 mod config;
@@ -54,6 +55,7 @@ mod exchange;
 mod lift;
 mod restrict;
 
+pub use adjust::apply_rates;
 #[cfg(feature = "mpi")]
 pub use batch::serve;
 pub use batch::{ReplicaTask, advance_cell, advance_cells, run_task};
@@ -62,7 +64,7 @@ pub use config::{BoxSize, Coupling, MAX_BODIES, MAX_REPLICAS};
 pub use error::SubgridError;
 pub use exchange::{CellInput, CellOutput, ClassInput, ClassOutput, Column, GasState, Stat};
 pub use lift::{
-    MAX_DIAMETER_PER_SIDE, MAX_VOLUME_FRACTION, box_volume, check_box, check_input,
-    expected_impact_density, lift, radius_of, replica_seed,
+    MAX_DIAMETER_PER_SIDE, MAX_VOLUME_FRACTION, TRACE_BODIES, box_volume, check_box, check_input,
+    draw_counts, expected_impact_density, is_trace, lift, radius_of, replica_seed,
 };
 pub use restrict::{ClassSums, Replica};

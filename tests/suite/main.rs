@@ -41,6 +41,8 @@ mod signals;
 mod stepping;
 mod study;
 mod subgrid;
+mod subgrid_persist;
+mod subgrid_unbiased;
 mod unfinishable_runs;
 mod walls;
 mod worked_examples;
