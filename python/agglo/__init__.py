@@ -15,13 +15,11 @@ and seed), and results come back as NumPy columns.
 All quantities are SI. See docs/python.md.
 """
 
-from ._agglo import AggloError, ScenarioError, __version__
-from .scenario import Scenario, ValidationReport
-from .simulation import Carry, Simulation
-from .table import Table
-from .ensemble import Ensemble, ensemble
-from . import subgrid
-
+# The compiled module loads on the first use of a name below (PEP 562), not at
+# `import agglo`: `agglo.kernel` — reading kernel files and installing them into DustPy —
+# needs numpy only, so `from agglo.kernel import load` works where the extension cannot
+# be imported (docs/kernel.md). The first of these names read imports everything, in the
+# order an eager import would, and raises the extension's ImportError if it is missing.
 __all__ = [
     "AggloError",
     "Carry",
@@ -35,3 +33,27 @@ __all__ = [
     "subgrid",
     "__version__",
 ]
+
+
+def _load_compiled() -> dict:
+    from ._agglo import AggloError, ScenarioError, __version__
+    from .scenario import Scenario, ValidationReport
+    from .simulation import Carry, Simulation
+    from .table import Table
+    from . import subgrid
+    # Last: the function `ensemble` replaces the submodule of that name as the attribute.
+    from .ensemble import Ensemble, ensemble
+
+    return dict(locals())
+
+
+def __getattr__(name):
+    if name not in __all__:
+        raise AttributeError(f"module 'agglo' has no attribute {name!r}")
+    loaded = _load_compiled()
+    globals().update(loaded)
+    return loaded[name]
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
