@@ -38,9 +38,10 @@ N0 = 10_000
 SIDE_CM = 2.0  # the scene's box: half_width 0.01 m
 # The primary's mass [g]: the shipped scene's total mass / N0 (4/3 π b0³ ρ at φ = 0.05).
 PRIMARY_G = 4.0005736781e-5
-# The documented grid (docs/kernel.md) and one whose first point is the primary.
+# The documented grid (docs/kernel.md) and one whose first point is the primary
+# (`primary`: the scenario's primary mass; 5 decades to 4 g, 36 points).
 DOCUMENTED = "dustpy:1e-5,1,7"
-ON_PRIMARY = f"dustpy:{PRIMARY_G!r},{PRIMARY_G * 1e5!r},7"
+ON_PRIMARY = "dustpy:primary,4,7"
 # Consecutive windows for a time-dependent kernel, ×4 each: the system cools and
 # coarsens by orders of magnitude over the run (N: 1e4 → 12).
 WINDOWS = ["0:0.001", "0.001:0.004", "0.004:0.016", "0.016:0.064", "0.064:0.5"]
@@ -157,6 +158,23 @@ def check_documented(name, ratio, t):
     assert early == pytest.approx(doc[0], abs=0.006), (name, early)
     assert worst == pytest.approx(doc[1], abs=0.06), (name, worst)
     assert end == pytest.approx(doc[2], abs=6e-4), (name, end)
+
+
+def test_primary_grid_starts_at_the_primary(files):
+    k = kernel.load(files["primary"])
+    assert k.mass_centres[0] == pytest.approx(PRIMARY_G, rel=1e-9)
+    assert k.classes == 36 and k.mass_centres[-1] == pytest.approx(4.0, rel=1e-12)
+    # Points at 1, 1.39, 1.93, 2.68 … primaries (10^(1/7) apart): the dimers sit in
+    # class 2, and class 1 holds no body — DustPy's sticking feeds it all the same, so
+    # even this grid needs the fill.
+    assert k.exposure[0, 0] > 0 and k.exposure[2, 2] > 0
+    assert k.exposure[1].max() == 0 and k.measured[1].max() == 0
+    # docs/kernel.md's figures for this file: the monomer kernel and the sampled
+    # geometric kernel and relative speed, exposure-weighted like K (deterministic: to the
+    # digits quoted).
+    assert k.kernel[0, 0] == pytest.approx(1.386, abs=5e-4)
+    assert k.geometric_kernel[0, 0] == pytest.approx(1.181, abs=5e-4)
+    assert k.relative_speed_mean[0, 0] == pytest.approx(208.8, abs=0.05)
 
 
 @pytest.mark.parametrize("grid", ["primary", "documented", "documented_14"])

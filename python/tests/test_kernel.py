@@ -119,6 +119,7 @@ def test_dustpy_arrays_apply_the_vertical_factor_and_half_diagonal(files):
     # Measured entries are the file's K; the rest filled, every entry finite and >= 0.
     measured = arrays["measured"]
     np.testing.assert_array_equal(measured, k.exposure > 0)
+    np.testing.assert_array_equal(k.measured, (k.exposure > 0).astype(np.int64))  # the file's mask
     np.testing.assert_array_equal(K3[measured], k.kernel[measured])
     assert np.isfinite(K3).all() and (K3 >= 0).all()
     # DustPy leaves the boundary cells at zero.
