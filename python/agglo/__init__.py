@@ -36,21 +36,35 @@ __all__ = [
 
 
 def _load_compiled() -> dict:
+    import importlib
+
     from ._agglo import AggloError, ScenarioError, __version__
     from .scenario import Scenario, ValidationReport
     from .simulation import Carry, Simulation
     from .table import Table
-    from . import subgrid
+
+    # Not `from . import subgrid`: that form asks this package for the attribute first,
+    # which would come back here.
+    subgrid = importlib.import_module(".subgrid", __name__)
     # Last: the function `ensemble` replaces the submodule of that name as the attribute.
     from .ensemble import Ensemble, ensemble
 
+    del importlib
     return dict(locals())
 
 
+_loading = False
+
+
 def __getattr__(name):
-    if name not in __all__:
+    global _loading
+    if name not in __all__ or _loading:
         raise AttributeError(f"module 'agglo' has no attribute {name!r}")
-    loaded = _load_compiled()
+    _loading = True
+    try:
+        loaded = _load_compiled()
+    finally:
+        _loading = False
     globals().update(loaded)
     return loaded[name]
 

@@ -2,6 +2,7 @@
 numbers for any thread count, a valid state after Ctrl-C."""
 
 import _thread
+import sys
 import json
 import subprocess
 import threading
@@ -340,3 +341,24 @@ def test_refused_outputs_leave_the_simulation_as_it_was(scenarios):
     assert len(sim.sizes()) > 0
     with pytest.raises(agglo.ScenarioError, match="kept: sizes"):
         sim.series()
+
+
+@pytest.mark.parametrize("first", ["ensemble", "subgrid", "Scenario", "__version__"])
+def test_import_agglo_loads_the_extension_on_first_use(first):
+    """`import agglo` leaves the compiled module alone (agglo.kernel needs numpy only);
+    whichever name is read first loads everything, as an eager import would: `ensemble`
+    the function, `subgrid` the module (reading it first once recursed without end)."""
+    script = f"""
+import sys
+import agglo
+assert "agglo._agglo" not in sys.modules
+getattr(agglo, {first!r})
+assert "agglo._agglo" in sys.modules
+assert callable(agglo.ensemble) and agglo.subgrid.__name__ == "agglo.subgrid"
+assert isinstance(agglo.Scenario, type) and issubclass(agglo.ScenarioError, Exception)
+assert sorted(n for n in agglo.__all__ if not hasattr(agglo, n)) == []
+print("ok")
+"""
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "ok"
