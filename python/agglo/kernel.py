@@ -57,7 +57,8 @@ def measure(scenario, bins: str, out, *, seeds: int = 8, threads: int = 0, windo
     """Measure the kernel of ``scenario`` (an ``agglo.Scenario``) as ``agglo kernel`` does,
     with the same library calls: ``seeds`` runs (the scenario's seed, then the next ones)
     on ``threads`` Rust threads (0: one per core), binned on ``bins`` (``edges:m0,m1,…``
-    [kg], ``dustpy:mmin,mmax,per_decade`` [g] or ``openfoam:d0,d1,…`` [m]) within
+    [kg], ``dustpy:mmin,mmax,per_decade`` [g] — ``mmin`` may be ``primary``, the
+    scenario's primary mass — or ``openfoam:d0,d1,…`` [m]) within
     ``window`` = (t0, t1) [s]; writes ``out`` (.npz, in ``units``: "si" or "cgs") and the
     long table ``parquet`` if given, and returns the file loaded (in ``load_units``).
     Needs the compiled package (the rest of this module does not)."""
