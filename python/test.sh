@@ -7,6 +7,17 @@
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 venv="${VENV:-$root/target/python-venv}"
+# The test extra installs DustPy 1.0.9, which PyPI has as source only: its build needs
+# gfortran (Debian/Ubuntu: apt-get install gfortran), installed here when missing and
+# this runs as root with apt-get (as on CI).
+if ! command -v gfortran >/dev/null; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq gfortran >/dev/null
+    else
+        echo "python/test.sh: DustPy (the test extra) needs gfortran to build: install it (apt-get install gfortran)" >&2
+        exit 1
+    fi
+fi
 python3 -m venv "$venv"
 "$venv/bin/pip" install --quiet --upgrade pip
 start=$(date +%s)

@@ -321,7 +321,8 @@ pub enum Units {
 GRID is one of
   edges:m0,m1,...                  class edges in kg, increasing; class k = [m_k, m_k+1)
   dustpy:mmin,mmax,bins_per_decade DustPy's grid (grams, as sim.ini.grid.mmin/mmax/Nmbpd);
-                                   class k holds sim.grid.m[k]
+                                   class k holds sim.grid.m[k]; mmin `primary`: the
+                                   scenario's primary mass (the file's mass_centres[0])
   openfoam:d0,d1,...               OpenFOAM size groups' diameters dSph in m, increasing
 Every body must lie inside the grid, at the start and throughout (else the run stops,
 naming the body). Rates follow K n_i n_j (i != j) and 1/2 K n_i^2 (i = j); K = counts/exposure.

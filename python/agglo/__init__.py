@@ -15,13 +15,11 @@ and seed), and results come back as NumPy columns.
 All quantities are SI. See docs/python.md.
 """
 
-from ._agglo import AggloError, ScenarioError, __version__
-from .scenario import Scenario, ValidationReport
-from .simulation import Carry, Simulation
-from .table import Table
-from .ensemble import Ensemble, ensemble
-from . import subgrid
-
+# The compiled module loads on the first use of a name below (PEP 562), not at
+# `import agglo`: `agglo.kernel` — reading kernel files and installing them into DustPy —
+# needs numpy only, so `from agglo.kernel import load` works where the extension cannot
+# be imported (docs/kernel.md). The first of these names read imports everything, in the
+# order an eager import would, and raises the extension's ImportError if it is missing.
 __all__ = [
     "AggloError",
     "Carry",
@@ -35,3 +33,41 @@ __all__ = [
     "subgrid",
     "__version__",
 ]
+
+
+def _load_compiled() -> dict:
+    import importlib
+
+    from ._agglo import AggloError, ScenarioError, __version__
+    from .scenario import Scenario, ValidationReport
+    from .simulation import Carry, Simulation
+    from .table import Table
+
+    # Not `from . import subgrid`: that form asks this package for the attribute first,
+    # which would come back here.
+    subgrid = importlib.import_module(".subgrid", __name__)
+    # Last: the function `ensemble` replaces the submodule of that name as the attribute.
+    from .ensemble import Ensemble, ensemble
+
+    del importlib
+    return dict(locals())
+
+
+_loading = False
+
+
+def __getattr__(name):
+    global _loading
+    if name not in __all__ or _loading:
+        raise AttributeError(f"module 'agglo' has no attribute {name!r}")
+    _loading = True
+    try:
+        loaded = _load_compiled()
+    finally:
+        _loading = False
+    globals().update(loaded)
+    return loaded[name]
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -32,7 +32,7 @@ pub fn measure_kernel(
         if seeds == 0 {
             return Err(scenario_error("kernel: seeds: at least 1"));
         }
-        let grid = MassGrid::parse(bins, s.material.rho)
+        let grid = MassGrid::for_scenario(bins, s)
             .map_err(|e| scenario_error(format!("kernel: bins: {e}")))?;
         let window = Window::new(window.0, window.1)
             .map_err(|e| scenario_error(format!("kernel: window: {e}")))?;

@@ -101,7 +101,8 @@ def test_dustpy_arrays_apply_the_vertical_factor_and_half_diagonal(files):
     k = kernel.load(files["cgs"])
     nm, nr = k.classes, 5
     H = np.linspace(1e9, 5e9, nr)[:, None] * np.ones(nm)  # cm
-    arrays = kernel.dustpy_arrays(k, H, m_grid=dustpy_m(*DUSTPY))
+    with pytest.warns(kernel.FilledKernelWarning, match=r"class pairs \(.* %\) were not measured"):
+        arrays = kernel.dustpy_arrays(k, H, m_grid=dustpy_m(*DUSTPY))
     for name in ("kernel", "stick", "frag"):
         assert arrays[name].shape == (nr, nm, nm), name
     K3 = arrays["kernel_3d"]
@@ -112,12 +113,93 @@ def test_dustpy_arrays_apply_the_vertical_factor_and_half_diagonal(files):
     j = i + 3
     expected = K3[i, j] / np.sqrt(2 * np.pi * (H[2, i] ** 2 + H[2, j] ** 2))
     assert arrays["kernel"][2, i, j] == pytest.approx(expected, rel=1e-12)
+    # DustPy's own kernel fills j >= i only (its coagulation reads that triangle).
+    assert arrays["kernel"][2, j, i] == 0.0
+    assert not arrays["kernel"][:, np.tril_indices(nm, -1)[0], np.tril_indices(nm, -1)[1]].any()
+    # Measured entries are the file's K; the rest filled, every entry finite and >= 0.
+    measured = arrays["measured"]
+    np.testing.assert_array_equal(measured, k.exposure > 0)
+    np.testing.assert_array_equal(k.measured, (k.exposure > 0).astype(np.int64))  # the file's mask
+    np.testing.assert_array_equal(K3[measured], k.kernel[measured])
+    assert np.isfinite(K3).all() and (K3 >= 0).all()
     # DustPy leaves the boundary cells at zero.
     assert not arrays["kernel"][0].any() and not arrays["kernel"][-1].any()
     # Ballistic: stick = 1 where impacts were seen, frag = 0.
     assert arrays["stick"][2, i, i] == 1.0 and arrays["frag"][2, i, i] == 0.0
-    with pytest.raises(ValueError, match="sim.grid.m"):
+    with pytest.raises(ValueError, match=r"sim\.grid\.m \(29 masses, 1e-05\.\.0\.1 g\)"):
         kernel.dustpy_arrays(k, H, m_grid=dustpy_m(1e-5, 1e-1, 7))
+
+
+def test_fill_reaches_every_class_the_runs_left_empty(files):
+    k = kernel.load(files["cgs"])
+    with pytest.warns(kernel.FilledKernelWarning) as caught:
+        filled = kernel.fill(k)
+    # The grid's points between the masses n primaries can have hold no body: their rows
+    # and columns have no exposure, and are the ones DustPy's sticking feeds anyway.
+    empty = filled["empty_classes"]
+    assert empty.size > 0
+    assert not (k.exposure[empty] > 0).any()
+    K = filled["kernel"]
+    assert np.isfinite(K).all() and np.array_equal(K, K.T)
+    assert (K[empty] > 0).any(axis=1).all()
+    # The warning says how much was filled, in the file's own units.
+    nm = k.classes
+    assert f"{filled['filled_pairs']} of {nm * nm} class pairs" in str(caught[0].message)
+    assert f"{empty.size} of {nm} classes never held a body" in str(caught[0].message)
+    assert " g)" in str(caught[0].message)
+    # "zero" keeps the old behaviour: nothing there.
+    zero = kernel.fill(k, missing="zero", warn=False)["kernel"]
+    assert not zero[empty].any()
+    with pytest.raises(ValueError, match="missing: allowed"):
+        kernel.fill(k, missing="nearest")
+
+
+def test_fill_is_exact_on_a_power_law():
+    # Interpolation in log mass, geometric in K, is exact for K = m_i^a m_j^a: rows of
+    # measured classes (including whole classes that were never occupied, and single
+    # pairs that never coexisted) come back to rounding.
+    m = np.logspace(-5, 0, 36)
+    exact = np.outer(m, m) ** (1 / 3) + 0.0
+    holes = exact.copy()
+    for c in (0, 3, 4, 17, 35):  # whole classes, at both ends too
+        holes[c, :] = np.nan
+        holes[:, c] = np.nan
+    holes[10, 20] = holes[20, 10] = np.nan
+    filled = kernel.fill_symmetric(holes, np.log(m))
+    inside = np.ones(36, bool)
+    inside[[0, 35]] = False  # beyond the measured range: the nearest value, not exact
+    np.testing.assert_allclose(filled[np.ix_(inside, inside)], exact[np.ix_(inside, inside)],
+                               rtol=1e-12)
+    np.testing.assert_allclose(filled[0, 1:35], exact[1, 1:35], rtol=1e-12)
+
+
+def test_kernel_module_imports_without_the_compiled_extension(files):
+    # A DustPy user's environment: numpy, no agglo._agglo. The package from the source
+    # tree, with the extension made unimportable even if it is installed.
+    script = f"""
+import sys
+class NoExtension:
+    def find_spec(self, name, path=None, target=None):
+        if name == "agglo._agglo":
+            raise ImportError("agglo._agglo blocked by the test")
+sys.meta_path.insert(0, NoExtension())
+sys.path.insert(0, {str(ROOT / "python")!r})
+from agglo.kernel import load, fill, install_dustpy, dustpy_arrays
+k = load({str(files["cgs"])!r})
+assert k.classes == 22
+import agglo
+assert "agglo._agglo" not in sys.modules
+try:
+    agglo.Scenario
+except ImportError as e:
+    assert "blocked" in str(e)
+else:
+    raise SystemExit("agglo.Scenario imported without the extension")
+print("ok")
+"""
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "ok"
 
 
 def test_openfoam_table(files, tmp_path):

@@ -2,6 +2,7 @@
 numbers for any thread count, a valid state after Ctrl-C."""
 
 import _thread
+import sys
 import json
 import subprocess
 import threading
@@ -436,3 +437,24 @@ def test_whole_number_arguments_are_refused_by_name(scenarios):
     # Whole numbers of any integer type still work (numpy's too).
     sim = agglo.Simulation(s, seed=np.uint64(5))
     assert sim.step(np.int32(2)) is False and sim.steps == 2
+
+
+@pytest.mark.parametrize("first", ["ensemble", "subgrid", "Scenario", "__version__"])
+def test_import_agglo_loads_the_extension_on_first_use(first):
+    """`import agglo` leaves the compiled module alone (agglo.kernel needs numpy only);
+    whichever name is read first loads everything, as an eager import would: `ensemble`
+    the function, `subgrid` the module (reading it first once recursed without end)."""
+    script = f"""
+import sys
+import agglo
+assert "agglo._agglo" not in sys.modules
+getattr(agglo, {first!r})
+assert "agglo._agglo" in sys.modules
+assert callable(agglo.ensemble) and agglo.subgrid.__name__ == "agglo.subgrid"
+assert isinstance(agglo.Scenario, type) and issubclass(agglo.ScenarioError, Exception)
+assert sorted(n for n in agglo.__all__ if not hasattr(agglo, n)) == []
+print("ok")
+"""
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "ok"

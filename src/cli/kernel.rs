@@ -40,7 +40,7 @@ pub fn kernel(args: KernelArgs) -> anyhow::Result<()> {
             path.display()
         );
     }
-    let grid = MassGrid::parse(&args.bins, scenario.material.rho)?;
+    let grid = MassGrid::for_scenario(&args.bins, &scenario)?;
     let window = window(&args)?;
     let sampling = Sampling {
         times: args.speed_samples,

@@ -108,6 +108,12 @@ pub const KERNEL_ARRAYS: &[ArraySpec] = &[
         "E_ij = (1/V)∫N_i N_j dt (½N_i(N_i − 1) on the diagonal) over the window, summed over runs",
     ),
     spec(
+        "measured",
+        "(Nm, Nm)",
+        Dim::None,
+        "1 where the pair was measured (E > 0: bodies of both classes coexisted in the window; K is then C/E, possibly 0), 0 where kernel is NaN: the mask of what a consumer must fill (python/agglo/kernel.py `fill`) (integer)",
+    ),
+    spec(
         "kernel",
         "(Nm, Nm)",
         Dim::Kernel,
@@ -207,7 +213,7 @@ pub const KERNEL_ARRAYS: &[ArraySpec] = &[
         "relative_speed_mean",
         "(Nm, Nm)",
         Dim::Speed,
-        "⟨|v_a − v_b|⟩ over all pairs of the classes (not only those that collide), drawn at sample times and weighted by the pairs present",
+        "⟨|v_a − v_b|⟩ over all pairs of the classes (not only those that collide), drawn at samples (the window's start, every 1/4 of the bodies merged or fragmented, and 16 evenly spread times), each interval between samples weighted by the exposure E_ij it accrued: the epoch K describes",
     ),
     spec(
         "geometric_kernel",
@@ -219,7 +225,7 @@ pub const KERNEL_ARRAYS: &[ArraySpec] = &[
         "relative_speed_draws",
         "(Nm, Nm)",
         Dim::None,
-        "pairs drawn for relative_speed_mean (integer)",
+        "pairs of bodies relative_speed_mean averages over: drawn from up to 64 bodies of each class (256 per pair of classes and sample) or, where the sample's classes have at most 256 pairs, each pair once (integer)",
     ),
     spec(
         "window",
@@ -382,6 +388,14 @@ impl Estimate {
             ),
         ));
         values.push(("exposure", Data::F64(dense(&|p| t.exposure[p]))));
+        values.push((
+            "measured",
+            Data::I64(
+                (0..pairs)
+                    .map(|q| (t.exposure[at(q / nm, q % nm)] > 0.0) as i64)
+                    .collect(),
+            ),
+        ));
         values.push(("kernel", Data::F64(dense(&|p| kernel(3, p)))));
         values.push(("kernel_se_poisson", Data::F64(dense(&|p| se_poisson(3, p)))));
         values.push(("kernel_se_seeds", Data::F64(dense(&|p| se_seeds(3, p)))));

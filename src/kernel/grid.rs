@@ -6,7 +6,8 @@
 //!
 //! - `edges:m0,m1,...` — explicit edges in kg;
 //! - `dustpy:mmin,mmax,bins_per_decade` — DustPy's own grid, in grams as DustPy takes
-//!   it (`sim.ini.grid.mmin`, `mmax`, `Nmbpd`): DustPy builds
+//!   it (`sim.ini.grid.mmin`, `mmax`, `Nmbpd`; `mmin` may be `primary`, the scenario's
+//!   primary mass, so that the aggregates of n primaries sit on or near points): DustPy builds
 //!   Nm = ⌈log10(mmax/mmin)⌉·Nmbpd + 1 points m_k = logspace(mmin, mmax, Nm)
 //!   (`Simulation._makemassgrid`), and class k is the one of point `sim.grid.m[k]`: its
 //!   edges are the geometric midpoints between neighbouring points, the outer two half a
@@ -67,27 +68,30 @@ pub enum GridError {
         got: String,
     },
     #[error(
-        "--bins: the grid [{first:e}, {last:e}) kg misses {missed} of the {bodies} bodies at t = {time:e} s (lightest {lightest:e} kg, heaviest {heaviest:e} kg); widen the grid"
+        "--bins: the grid {range} misses {missed} of the {bodies} bodies at t = {time:e} s (lightest {lightest}, heaviest {heaviest}); widen the grid"
     )]
     Misses {
-        first: f64,
-        last: f64,
+        /// The grid's extent and the masses, in the grid's own units ([`MassGrid::show`]).
+        range: String,
         missed: usize,
         bodies: usize,
         time: f64,
-        lightest: f64,
-        heaviest: f64,
+        lightest: String,
+        heaviest: String,
     },
     #[error(
-        "--bins: at t = {time:e} s body {id} has mass {mass:e} kg, outside the grid [{first:e}, {last:e}) kg; widen the grid"
+        "--bins: at t = {time:e} s body {id} has mass {mass}, outside the grid {range}; widen the grid"
     )]
     Outside {
         time: f64,
         id: u64,
-        mass: f64,
-        first: f64,
-        last: f64,
+        mass: String,
+        range: String,
     },
+    #[error(
+        "--bins dustpy:primary,…: `primary` is the scenario's primary mass, which this caller does not know (use MassGrid::for_scenario)"
+    )]
+    NoPrimary,
 }
 
 /// The most classes a grid may have: the file's fragment mass fractions are Nm³ floats
@@ -113,6 +117,9 @@ pub struct MassGrid {
     /// The representative mass of each class [kg]: DustPy's `sim.grid.m[k]`, the
     /// OpenFOAM group's mass, or the geometric mean of the edges for explicit edges.
     pub centres: Vec<f64>,
+    /// The material density [kg/m³] the grid was parsed with (OpenFOAM diameters ↔ masses).
+    #[serde(default)]
+    pub density: f64,
 }
 
 /// Parse the values after `kind:`, each finite and > 0, strictly increasing.
@@ -155,18 +162,42 @@ fn edges_around(points: &[f64]) -> Vec<f64> {
 }
 
 impl MassGrid {
-    /// Parse `--bins`; `density` [kg/m³] turns OpenFOAM diameters into masses.
+    /// Parse `--bins`; `density` [kg/m³] turns OpenFOAM diameters into masses. The
+    /// `dustpy:primary,…` form needs the scenario: [`Self::for_scenario`].
     pub fn parse(spec: &str, density: f64) -> Result<Self, GridError> {
-        let grid = Self::parse_any(spec, density)?;
+        Self::parse_with_primary(spec, density, None)
+    }
+
+    /// Parse `--bins` for `scenario`: its density, and its primary mass
+    /// ρ·(4/3)π·b0³ for `dustpy:primary,mmax,bins_per_decade` (a DustPy grid whose first
+    /// point is the primary, so that every aggregate of n primaries sits near a point).
+    pub fn for_scenario(
+        spec: &str,
+        scenario: &crate::scenario::Scenario,
+    ) -> Result<Self, GridError> {
+        let rho = scenario.material.rho;
+        let b0 = scenario.primary_radius();
+        let primary = rho * 4.0 / 3.0 * std::f64::consts::PI * b0 * b0 * b0;
+        Self::parse_with_primary(spec, rho, Some(primary))
+    }
+
+    /// [`Self::parse`], with the primary mass [kg] `primary` for `dustpy:primary,…`.
+    pub fn parse_with_primary(
+        spec: &str,
+        density: f64,
+        primary: Option<f64>,
+    ) -> Result<Self, GridError> {
+        let mut grid = Self::parse_any(spec, density, primary)?;
         if grid.classes() > MAX_CLASSES {
             return Err(GridError::TooMany {
                 classes: grid.classes(),
             });
         }
+        grid.density = density;
         Ok(grid)
     }
 
-    fn parse_any(spec: &str, density: f64) -> Result<Self, GridError> {
+    fn parse_any(spec: &str, density: f64, primary: Option<f64>) -> Result<Self, GridError> {
         let (kind, rest) = spec
             .split_once(':')
             .ok_or_else(|| GridError::Kind(spec.to_string()))?;
@@ -181,6 +212,10 @@ impl MassGrid {
                     .map(str::trim)
                     .enumerate()
                     .map(|(index, text)| {
+                        if index == 0 && text == "primary" {
+                            // The primary's mass in grams, as DustPy takes mmin.
+                            return primary.map(|m| m * 1e3).ok_or(GridError::NoPrimary);
+                        }
                         text.parse::<f64>().map_err(|_| GridError::NotANumber {
                             kind: "dustpy",
                             index,
@@ -224,6 +259,7 @@ impl MassGrid {
                     spec: spec.to_string(),
                     edges: edges_around(&points),
                     centres: points,
+                    density,
                 })
             }
             "openfoam" => {
@@ -244,6 +280,7 @@ impl MassGrid {
                     spec: spec.to_string(),
                     edges: edges_around(&points),
                     centres: points,
+                    density,
                 })
             }
             _ => Err(GridError::Kind(spec.to_string())),
@@ -288,6 +325,7 @@ impl MassGrid {
             spec: spec.to_string(),
             edges,
             centres,
+            density: f64::NAN,
         })
     }
 
@@ -316,14 +354,36 @@ impl MassGrid {
         let lightest = masses.iter().copied().fold(f64::INFINITY, f64::min);
         let heaviest = masses.iter().copied().fold(0.0, f64::max);
         Err(GridError::Misses {
-            first: self.edges[0],
-            last: self.edges[self.edges.len() - 1],
+            range: self.show_range(),
             missed,
             bodies: masses.len(),
             time,
-            lightest,
-            heaviest,
+            lightest: self.show(lightest),
+            heaviest: self.show(heaviest),
         })
+    }
+
+    /// A mass [kg] in the units the grid was given in: grams for a DustPy grid, the
+    /// sphere-equivalent diameter [m] (and the mass in kg) for an OpenFOAM one, kg for
+    /// explicit edges.
+    pub fn show(&self, mass: f64) -> String {
+        match self.kind {
+            GridKind::Edges => format!("{mass:e} kg"),
+            GridKind::DustPy => format!("{:e} g", mass * 1e3),
+            GridKind::OpenFoam => {
+                let d = (6.0 * mass / (std::f64::consts::PI * self.density)).cbrt();
+                format!("dSph {d:e} m ({mass:e} kg)")
+            }
+        }
+    }
+
+    /// The grid's extent [first edge, last edge), in its own units ([`Self::show`]).
+    pub fn show_range(&self) -> String {
+        format!(
+            "[{}, {})",
+            self.show(self.edges[0]),
+            self.show(self.edges[self.edges.len() - 1])
+        )
     }
 }
 

@@ -30,7 +30,8 @@ mod grid;
 pub mod write;
 
 pub use accumulator::{
-    Accumulator, KernelError, OUTCOMES, RunMoments, Sampling, Tally, Window, subscribe,
+    Accumulator, KernelError, OUTCOMES, RESAMPLE_FRACTION, RunMoments, Sampling, Tally, Window,
+    subscribe,
 };
 pub use estimate::{
     Array, ArraySpec, CONVENTION, Data, Dim, Estimate, KERNEL_ARRAYS, ZERO_COUNT_UPPER_95, wilson,
