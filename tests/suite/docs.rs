@@ -271,39 +271,47 @@ fn shell_lines_split_as_the_shell_splits_them() {
     assert!(agglo_arguments("man ./agglo.1").is_none());
 }
 
-#[test]
-fn every_agglo_command_in_the_docs_parses() {
-    let mut parsed = 0;
-    let mut refused = Vec::new();
+/// Every shell code block of README.md and docs/*.md: (the page's path, its lines).
+fn shell_blocks() -> Vec<(String, Vec<String>)> {
+    let mut blocks = Vec::new();
     for page in pages() {
         let text = std::fs::read_to_string(&page).unwrap();
         let name = page.strip_prefix(root()).unwrap().display().to_string();
         for (info, lines) in split(&text).1 {
-            if !matches!(info.as_str(), "sh" | "bash" | "shell" | "console") {
-                continue;
+            if matches!(info.as_str(), "sh" | "bash" | "shell" | "console") {
+                blocks.push((name.clone(), lines.into_iter().map(String::from).collect()));
             }
-            // Continuation lines (a trailing backslash) joined first.
-            let mut joined = Vec::new();
-            let mut current = String::new();
-            for line in lines {
-                match line.trim_end().strip_suffix('\\') {
-                    Some(head) => current.push_str(head),
-                    None => {
-                        current.push_str(line);
-                        joined.push(std::mem::take(&mut current));
-                    }
+        }
+    }
+    blocks
+}
+
+#[test]
+fn every_agglo_command_in_the_docs_parses() {
+    let mut parsed = 0;
+    let mut refused = Vec::new();
+    for (name, lines) in shell_blocks() {
+        // Continuation lines (a trailing backslash) joined first.
+        let mut joined = Vec::new();
+        let mut current = String::new();
+        for line in &lines {
+            match line.trim_end().strip_suffix('\\') {
+                Some(head) => current.push_str(head),
+                None => {
+                    current.push_str(line);
+                    joined.push(std::mem::take(&mut current));
                 }
             }
-            for line in joined {
-                let Some(args) = agglo_arguments(&line) else {
-                    continue;
-                };
-                parsed += 1;
-                if let Err(e) = agglo::cli_args::Cli::try_parse_from(&args) {
-                    use clap::error::ErrorKind::{DisplayHelp, DisplayVersion};
-                    if !matches!(e.kind(), DisplayHelp | DisplayVersion) {
-                        refused.push(format!("{name}: `{}`\n{e}", line.trim()));
-                    }
+        }
+        for line in joined {
+            let Some(args) = agglo_arguments(&line) else {
+                continue;
+            };
+            parsed += 1;
+            if let Err(e) = agglo::cli_args::Cli::try_parse_from(&args) {
+                use clap::error::ErrorKind::{DisplayHelp, DisplayVersion};
+                if !matches!(e.kind(), DisplayHelp | DisplayVersion) {
+                    refused.push(format!("{name}: `{}`\n{e}", line.trim()));
                 }
             }
         }
@@ -398,32 +406,25 @@ fn files_under(dir: &Path) -> Vec<PathBuf> {
 fn files_written_under_home_have_their_directory_made_first() {
     let mut checked = 0;
     let mut missing = Vec::new();
-    for page in pages() {
-        let text = std::fs::read_to_string(&page).unwrap();
-        let name = page.strip_prefix(root()).unwrap().display().to_string();
-        for (info, lines) in split(&text).1 {
-            if !matches!(info.as_str(), "sh" | "bash" | "shell" | "console") {
+    for (name, lines) in shell_blocks() {
+        let mut made: Vec<String> = Vec::new();
+        for line in lines {
+            let line = line.split(" #").next().unwrap_or("").trim();
+            if let Some(dirs) = line.strip_prefix("mkdir -p ") {
+                made.extend(dirs.split_whitespace().map(String::from));
+            }
+            let Some(target) = line.split("> ").nth(1).map(str::trim) else {
+                continue;
+            };
+            let Some(dir) = target.rsplit_once('/').map(|(d, _)| d) else {
+                continue;
+            };
+            if !dir.starts_with('~') {
                 continue;
             }
-            let mut made: Vec<String> = Vec::new();
-            for line in lines {
-                let line = line.split(" #").next().unwrap_or("").trim();
-                if let Some(dirs) = line.strip_prefix("mkdir -p ") {
-                    made.extend(dirs.split_whitespace().map(String::from));
-                }
-                let Some(target) = line.split("> ").nth(1).map(str::trim) else {
-                    continue;
-                };
-                let Some(dir) = target.rsplit_once('/').map(|(d, _)| d) else {
-                    continue;
-                };
-                if !dir.starts_with('~') {
-                    continue;
-                }
-                checked += 1;
-                if !made.iter().any(|m| m == dir) {
-                    missing.push(format!("{name}: `{line}`: no `mkdir -p {dir}` before it"));
-                }
+            checked += 1;
+            if !made.iter().any(|m| m == dir) {
+                missing.push(format!("{name}: `{line}`: no `mkdir -p {dir}` before it"));
             }
         }
     }
