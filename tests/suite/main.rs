@@ -41,6 +41,7 @@ mod signals;
 mod stepping;
 mod study;
 mod subgrid;
+mod subgrid_harden;
 mod subgrid_persist;
 mod subgrid_unbiased;
 mod unfinishable_runs;
