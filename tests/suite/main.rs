@@ -25,6 +25,7 @@ mod hooks;
 mod initial_data;
 mod inverse;
 mod kernel;
+mod kernel_harden;
 mod layout;
 mod live;
 mod outcome;
