@@ -49,7 +49,8 @@ pub fn kernel(args: KernelArgs) -> anyhow::Result<()> {
         pairs: args.speed_pairs,
     };
     sampling.check().map_err(anyhow::Error::msg)?;
-    kernel::check_seeds(args.seeds, &grid).map_err(anyhow::Error::msg)?;
+    kernel::check_seeds(args.seeds, &grid)
+        .map_err(|e| anyhow::anyhow!("--seeds {}: {e}", args.seeds))?;
     kernel::write::check_writable(&args.out, "--out")?;
     if let Some(path) = &args.parquet {
         kernel::write::check_writable(path, "--parquet")?;

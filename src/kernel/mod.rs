@@ -60,12 +60,8 @@ pub fn run_bytes(classes: usize) -> f64 {
 /// listed (4294967295 seeds aborted allocating 34 GB).
 pub fn check_seeds(count: u32, grid: &MassGrid) -> Result<(), String> {
     let per_run = run_bytes(grid.classes());
-    crate::memory::fits("seeds", count as usize, count as f64 * per_run).map_err(|e| {
-        format!(
-            "--seeds {count}: {e} ({per_run:.0} B per run on {} classes)",
-            grid.classes()
-        )
-    })
+    crate::memory::fits("seeds", count as usize, count as f64 * per_run)
+        .map_err(|e| format!("{e} ({per_run:.0} B per run on {} classes)", grid.classes()))
 }
 
 /// The seeds of an ensemble of `count` runs: the scenario's seed, then the next ones

@@ -127,6 +127,12 @@ fn converted_grids_whose_masses_underflow_are_refused_naming_the_grid() {
     // DustPy's mmin in grams, 5e-324 g, is 0 kg.
     let e = parse_error("dustpy:5e-324,1e-300,1");
     assert!(e.starts_with("--bins dustpy: point 0 is 0e0 kg"), "{e}");
+    // An mmax whose log10 is mmin's: one point, which panicked indexing the second.
+    let e = parse_error("dustpy:1e300,1.0000000000000002e300,7");
+    assert!(
+        e.starts_with("--bins dustpy: mmax: allowed a decade's fraction"),
+        "{e}"
+    );
     // Sound grids still parse, with every edge finite and increasing (at 1e-303 kg the
     // midpoints √(m_k m_k+1) underflowed to 0 before: refused as a converted grid).
     for spec in ["openfoam:1e-6,2e-6,4e-6", "dustpy:1e-300,1e-290,1"] {
