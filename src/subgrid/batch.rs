@@ -48,7 +48,7 @@ fn prepare(
         Some(s) => s.volume,
         None => box_volume(c, cell, input)?,
     };
-    check_step(cell, input.dt, volume, state.map_or(0.0, |s| s.time))?;
+    check_step(cell, input.dt, volume, kept.map(|s| s.time))?;
     let ignored = match kept {
         Some(_) if !c.persist => vec![false; input.classes.len()],
         _ => {
@@ -92,8 +92,9 @@ fn prepare(
 pub const VOLUME_TIME_RANGE: (f64, f64) = (1e-290, 1e290);
 
 /// Refuse a Δt that no rate can be divided by in a box of `volume` [m³], or that is
-/// lost against the cell's clock `time` [s] (time + Δt = time: the box would not move).
-fn check_step(cell: u64, dt: f64, volume: f64, time: f64) -> Result<(), SubgridError> {
+/// lost against a kept box's clock `kept_time` [s] (time + Δt = time: the box would not
+/// move; a box lifted afresh starts at 0).
+fn check_step(cell: u64, dt: f64, volume: f64, kept_time: Option<f64>) -> Result<(), SubgridError> {
     let (lo, hi) = VOLUME_TIME_RANGE;
     let vdt = volume * dt;
     if !(lo..=hi).contains(&vdt) {
@@ -109,7 +110,9 @@ fn check_step(cell: u64, dt: f64, volume: f64, time: f64) -> Result<(), SubgridE
             ),
         ));
     }
-    if time + dt == time {
+    if let Some(time) = kept_time
+        && time + dt == time
+    {
         return Err(SubgridError::input(
             cell,
             "dt",
