@@ -185,3 +185,18 @@ fn a_kept_box_takes_fewer_bytes_per_body_than_the_estimate_says() {
         "{per_body} B per body"
     );
 }
+
+/// The peak memory of one open box of N bodies (`AGGLO_BOX_BODIES`, default 1e5), for
+/// measuring src/subgrid/memory.rs's bytes per body by hand: run under `/usr/bin/time -v` at two
+/// N and take the slope of the maximum resident size.
+#[test]
+#[ignore = "a measurement, run by hand under /usr/bin/time -v"]
+fn one_box_for_measuring_its_memory() {
+    let n: u32 = std::env::var("AGGLO_BOX_BODIES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(100_000);
+    let c = coupling(n, 1);
+    let (out, _) = advance_cell(&c, 1, 0, &monomers(&c, 0.02, 1e-6), None).unwrap();
+    println!("{n} bodies: impact rate {:e}", out.impact_rate.mean);
+}
