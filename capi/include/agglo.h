@@ -145,7 +145,12 @@ enum AggloStatus agglo_cell_advance(const struct AggloCoupling *coupling,
 // `states[i]` (NULL: lift from the input), replaced on success as in
 // `agglo_cell_advance`; `outs[i]` gets its output, or NULL when it failed (what it held
 // before is overwritten, not freed), and
-// `statuses[i]` (NULL: not wanted) its status. Returns `AGGLO_STATUS_OK` when every
+// `statuses[i]` (NULL: not wanted) its status, written for every entry once the
+// arguments themselves are usable. A cell's own fault fails that cell alone: its input
+// (out of range, an unknown `gas.drag`, a NULL array), its state (another cell's, or a
+// closed cell's given to an open coupling), or a state given to two entries
+// (`AGGLO_STATUS_ARGUMENT` for each, naming the other index: advancing both would free
+// it twice). Returns `AGGLO_STATUS_OK` when every
 // cell advanced, else the first failed cell's status, with every failed cell's message
 // (one per line) in `agglo_last_error()`. A cell's output is the same bytes for any
 // thread count and any order of the cells.

@@ -6,7 +6,7 @@ use agglo::subgrid::{self, CellInput, GasState};
 use agglo_engine::field::Relaxation;
 
 use crate::coupling::AggloCoupling;
-use crate::error::{AggloStatus, Failure, guard, handle, out_pointer, slice, status_of};
+use crate::error::{AggloStatus, Failure, guard, handle, out_pointer, slice};
 use crate::output::AggloOutput;
 use crate::state::AggloCellState;
 
@@ -99,7 +99,12 @@ pub unsafe extern "C" fn agglo_cell_advance(
 /// `states[i]` (NULL: lift from the input), replaced on success as in
 /// `agglo_cell_advance`; `outs[i]` gets its output, or NULL when it failed (what it held
 /// before is overwritten, not freed), and
-/// `statuses[i]` (NULL: not wanted) its status. Returns `AGGLO_STATUS_OK` when every
+/// `statuses[i]` (NULL: not wanted) its status, written for every entry once the
+/// arguments themselves are usable. A cell's own fault fails that cell alone: its input
+/// (out of range, an unknown `gas.drag`, a NULL array), its state (another cell's, or a
+/// closed cell's given to an open coupling), or a state given to two entries
+/// (`AGGLO_STATUS_ARGUMENT` for each, naming the other index: advancing both would free
+/// it twice). Returns `AGGLO_STATUS_OK` when every
 /// cell advanced, else the first failed cell's status, with every failed cell's message
 /// (one per line) in `agglo_last_error()`. A cell's output is the same bytes for any
 /// thread count and any order of the cells.
@@ -132,21 +137,47 @@ pub unsafe extern "C" fn agglo_cells_advance(
             out_pointer(states, "states")?;
             out_pointer(outs, "outs")?;
         }
+        // SAFETY: states holds n_cells handles, each NULL or live.
+        let handles = unsafe { slice(states.cast_const(), n_cells, "states") }?;
+        // Each cell's own refusal (an unknown drag, a wrong length, a state shared with
+        // another entry) fails that cell alone; the others go to the farm.
+        let mut shared = shared_states(handles);
+        let mut own: Vec<Option<Failure>> = Vec::with_capacity(n_cells);
         let mut batch = Vec::with_capacity(n_cells);
         for (i, (&cell, input)) in ids.iter().zip(inputs).enumerate() {
-            // SAFETY: the caller's contract: n_cells entries.
-            let input = unsafe { read_input(c, cell, input) }?;
-            // SAFETY: states holds n_cells handles, each NULL or live.
-            let state = unsafe { (*states.add(i)).as_ref() }.map(|s| s.0.clone());
-            batch.push((cell, input, state));
+            // SAFETY: the caller's contract: the input's arrays hold the class count.
+            let read = unsafe { read_input(c, cell, input) }.and_then(|input| {
+                if let Some(f) = shared[i].take() {
+                    return Err(f);
+                }
+                // SAFETY: states[i] is NULL or live.
+                let state = unsafe { handles[i].as_ref() }.map(|s| s.0.clone());
+                Ok((cell, input, state))
+            });
+            match read {
+                Ok(entry) => {
+                    batch.push(entry);
+                    own.push(None);
+                }
+                Err(failure) => own.push(Some(failure)),
+            }
         }
-        let results = subgrid::advance_cells(c, macro_step, &batch, &Workers::local(threads));
+        let mut results =
+            subgrid::advance_cells(c, macro_step, &batch, &Workers::local(threads)).into_iter();
         let mut messages = Vec::new();
         let mut first_failure = AggloStatus::Ok;
-        for (i, result) in results.into_iter().enumerate() {
+        for (i, failure) in own.into_iter().enumerate() {
+            let result = match failure {
+                Some(f) => Err(f),
+                None => results
+                    .next()
+                    .expect("one result per cell sent")
+                    .map_err(Failure::from),
+            };
             let cell_status = match result {
                 Ok((output, new)) => {
-                    // SAFETY: i < n_cells; the old state is ours to free.
+                    // SAFETY: i < n_cells; the old state is ours to free (no other entry
+                    // holds it: shared_states).
                     unsafe {
                         crate::state::agglo_state_free(*states.add(i));
                         *states.add(i) = AggloCellState::into_raw(new);
@@ -154,11 +185,11 @@ pub unsafe extern "C" fn agglo_cells_advance(
                     }
                     AggloStatus::Ok
                 }
-                Err(e) => {
+                Err(f) => {
                     // SAFETY: i < n_cells.
                     unsafe { *outs.add(i) = std::ptr::null_mut() };
-                    messages.push(e.to_string());
-                    status_of(&e)
+                    messages.push(f.message);
+                    f.status
                 }
             };
             if !statuses.is_null() {
@@ -178,6 +209,35 @@ pub unsafe extern "C" fn agglo_cells_advance(
             })
         }
     })
+}
+
+/// Per entry, the other entries that hold the same state (pointer equality), when any:
+/// advancing both would replace (and free) the one state twice, so every entry sharing
+/// a state is refused and none is left pointing to a freed state. O(n) with a map.
+fn shared_states(states: &[*mut AggloCellState]) -> Vec<Option<Failure>> {
+    let mut holders: std::collections::HashMap<*mut AggloCellState, Vec<usize>> =
+        std::collections::HashMap::new();
+    for (i, &s) in states.iter().enumerate() {
+        if !s.is_null() {
+            holders.entry(s).or_default().push(i);
+        }
+    }
+    (0..states.len())
+        .map(|i| {
+            let all = holders.get(&states[i])?;
+            let others: Vec<String> = all
+                .iter()
+                .filter(|&&j| j != i)
+                .map(|j| format!("states[{j}]"))
+                .collect();
+            (!others.is_empty()).then(|| {
+                Failure::argument(format!(
+                    "states[{i}] is the same state as {} (each cell needs its own state)",
+                    others.join(", ")
+                ))
+            })
+        })
+        .collect()
 }
 
 /// The input at `input` as the library's, checked for lengths (values are checked

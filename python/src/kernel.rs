@@ -36,6 +36,14 @@ pub fn measure_kernel(
             .map_err(|e| scenario_error(format!("kernel: bins: {e}")))?;
         let window = Window::new(window.0, window.1)
             .map_err(|e| scenario_error(format!("kernel: window: {e}")))?;
+        // Refused before the seeds are listed or any run starts (issue 39: 2**32 − 1
+        // seeds killed the interpreter; a missing directory lost the measurement).
+        kernel::check_seeds(seeds, &grid)
+            .map_err(|e| scenario_error(format!("kernel: seeds: {e}")))?;
+        kernel::write::check_writable(&out, "out").map_err(agglo_error)?;
+        if let Some(path) = &parquet {
+            kernel::write::check_writable(path, "parquet").map_err(agglo_error)?;
+        }
         let seed_list = kernel::seeds(s, seeds);
         py.detach(|| {
             let workers = agglo::farm::Workers::local(threads);

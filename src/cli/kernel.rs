@@ -40,12 +40,21 @@ pub fn kernel(args: KernelArgs) -> anyhow::Result<()> {
             path.display()
         );
     }
+    // Everything that can be refused is, before the first run: the grid, the sampling,
+    // the ensemble's memory and the outputs' directories.
     let grid = MassGrid::for_scenario(&args.bins, &scenario)?;
     let window = window(&args)?;
     let sampling = Sampling {
         times: args.speed_samples,
         pairs: args.speed_pairs,
     };
+    sampling.check().map_err(anyhow::Error::msg)?;
+    kernel::check_seeds(args.seeds, &grid)
+        .map_err(|e| anyhow::anyhow!("--seeds {}: {e}", args.seeds))?;
+    kernel::write::check_writable(&args.out, "--out")?;
+    if let Some(path) = &args.parquet {
+        kernel::write::check_writable(path, "--parquet")?;
+    }
     let seeds = kernel::seeds(&scenario, args.seeds);
     let workers = agglo::farm::Workers::local(args.threads);
     let quiet = args.quiet;

@@ -262,6 +262,37 @@ pub struct Sampling {
     pub pairs: u32,
 }
 
+/// The most sample times per run: the times are listed when a run begins and each is a
+/// pass over the bodies (4e9 aborted allocating 32 GB).
+pub const MAX_SPEED_SAMPLES: u32 = 1_000_000;
+
+/// The most pairs drawn per pair of classes and sample: at [`MEMBERS_PER_CLASS`]² = 4096
+/// every pair of the chosen subsets is taken once, so more draws give the same numbers
+/// (4e9 hung drawing them one by one).
+pub const MAX_SPEED_PAIRS: u32 = (MEMBERS_PER_CLASS * MEMBERS_PER_CLASS) as u32;
+
+impl Sampling {
+    /// Refuse more samples or pairs than a run can use, naming the flag and the range.
+    pub fn check(&self) -> Result<(), String> {
+        if self.times > MAX_SPEED_SAMPLES {
+            return Err(format!(
+                "--speed-samples {}: allowed 1 to {MAX_SPEED_SAMPLES} (each sample is a pass \
+                 over the bodies; the times are listed, 8 B each, when a run begins)",
+                self.times
+            ));
+        }
+        if self.pairs > MAX_SPEED_PAIRS {
+            return Err(format!(
+                "--speed-pairs {}: allowed 1 to {MAX_SPEED_PAIRS} (at {MAX_SPEED_PAIRS} = \
+                 {MEMBERS_PER_CLASS}² every pair of the {MEMBERS_PER_CLASS} bodies drawn per \
+                 class is taken once: more draws change nothing)",
+                self.pairs
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for Sampling {
     fn default() -> Self {
         Self {

@@ -61,6 +61,15 @@ pub enum GridError {
         "--bins: {classes} classes: allowed at most {MAX_CLASSES} (the file holds Nm³ fragment mass fractions)"
     )]
     TooMany { classes: usize },
+    #[error(
+        "--bins {kind}: {what} {index} is {value:e} kg after conversion: the masses and their edges must be finite, > 0 and increasing (the values are too small or too close to give distinct masses in f64)"
+    )]
+    Converted {
+        kind: &'static str,
+        what: &'static str,
+        index: usize,
+        value: f64,
+    },
     #[error("--bins dustpy: {field}: allowed {allowed} (got {got})")]
     DustPy {
         field: &'static str,
@@ -150,13 +159,52 @@ fn numbers(kind: &'static str, text: &str) -> Result<Vec<f64>, GridError> {
     Ok(values)
 }
 
+/// Check a converted grid: every point and edge finite, > 0 (normal: not flushed
+/// toward 0) and strictly increasing, each point inside its class. A DustPy or OpenFOAM
+/// grid of tiny values underflows (diameters of 1e-200 m gave NaN edges and, after a
+/// full run, an error pooling the runs).
+fn check_converted(kind: &'static str, points: &[f64], edges: &[f64]) -> Result<(), GridError> {
+    let bad = |what, index, value| GridError::Converted {
+        kind,
+        what,
+        index,
+        value,
+    };
+    for (what, values) in [("point", points), ("edge", edges)] {
+        for (index, &value) in values.iter().enumerate() {
+            let above_previous = index == 0 || value > values[index - 1];
+            if !(value.is_finite() && value >= f64::MIN_POSITIVE && above_previous) {
+                return Err(bad(what, index, value));
+            }
+        }
+    }
+    for (index, &point) in points.iter().enumerate() {
+        if !(edges[index] <= point && point < edges[index + 1]) {
+            return Err(bad("point", index, point));
+        }
+    }
+    Ok(())
+}
+
+/// √(a b) for a, b > 0: as written where the product is a normal number (the grids'
+/// bits as before), else as a √(b/a), which neither underflows nor overflows (masses
+/// below 1e-154 kg had midpoints of 0).
+fn geometric_mean(a: f64, b: f64) -> f64 {
+    let product = a * b;
+    if product.is_normal() {
+        product.sqrt()
+    } else {
+        a * (b / a).sqrt()
+    }
+}
+
 /// Edges around increasing points: geometric midpoints inside, and half a log-spacing
 /// beyond each end point (what a logarithmic grid's cell interfaces are).
 fn edges_around(points: &[f64]) -> Vec<f64> {
     let n = points.len();
     let mut edges = Vec::with_capacity(n + 1);
     edges.push(points[0] / (points[1] / points[0]).sqrt());
-    edges.extend(points.windows(2).map(|w| (w[0] * w[1]).sqrt()));
+    edges.extend(points.windows(2).map(|w| geometric_mean(w[0], w[1])));
     edges.push(points[n - 1] * (points[n - 1] / points[n - 2]).sqrt());
     edges
 }
@@ -254,10 +302,20 @@ impl MassGrid {
                 let points_g = dustpy_mass_grid(mmin, mmax, per_decade as u32);
                 // DustPy works in grams; the engine in kg.
                 let points: Vec<f64> = points_g.iter().map(|m| m * 1e-3).collect();
+                if points.len() < 2 {
+                    // mmax within rounding of mmin: log10 of both is the same number.
+                    return Err(GridError::DustPy {
+                        field: "mmax",
+                        allowed: "a decade's fraction above mmin that log10 tells apart",
+                        got: format!("{mmax:e} g for mmin {mmin:e} g"),
+                    });
+                }
+                let edges = edges_around(&points);
+                check_converted("dustpy", &points, &edges)?;
                 Ok(Self {
                     kind: GridKind::DustPy,
                     spec: spec.to_string(),
-                    edges: edges_around(&points),
+                    edges,
                     centres: points,
                     density,
                 })
@@ -275,10 +333,12 @@ impl MassGrid {
                     .iter()
                     .map(|d| density * std::f64::consts::PI * d * d * d / 6.0)
                     .collect();
+                let edges = edges_around(&points);
+                check_converted("openfoam", &points, &edges)?;
                 Ok(Self {
                     kind: GridKind::OpenFoam,
                     spec: spec.to_string(),
-                    edges: edges_around(&points),
+                    edges,
                     centres: points,
                     density,
                 })
@@ -319,7 +379,10 @@ impl MassGrid {
                 });
             }
         }
-        let centres = edges.windows(2).map(|w| (w[0] * w[1]).sqrt()).collect();
+        let centres = edges
+            .windows(2)
+            .map(|w| geometric_mean(w[0], w[1]))
+            .collect();
         Ok(Self {
             kind: GridKind::Edges,
             spec: spec.to_string(),

@@ -30,8 +30,8 @@ mod grid;
 pub mod write;
 
 pub use accumulator::{
-    Accumulator, KernelError, OUTCOMES, RESAMPLE_FRACTION, RunMoments, Sampling, Tally, Window,
-    subscribe,
+    Accumulator, KernelError, MAX_SPEED_PAIRS, MAX_SPEED_SAMPLES, MEMBERS_PER_CLASS, OUTCOMES,
+    RESAMPLE_FRACTION, RunMoments, Sampling, Tally, Window, subscribe,
 };
 pub use estimate::{
     Array, ArraySpec, CONVENTION, Data, Dim, Estimate, KERNEL_ARRAYS, ZERO_COUNT_UPPER_95, wilson,
@@ -45,6 +45,24 @@ use anyhow::Context;
 use crate::farm::Workers;
 use crate::scenario::Scenario;
 use crate::schedule::Simulation;
+
+/// Bytes one run's accumulator holds until the ensemble is pooled, on `classes`
+/// classes [B]: per pair of classes its tally (3 counts, exposure, 4 speed sums,
+/// fragment mass, 3 relative-speed sums, draws: 104 B) and moments (9 sums: 72 B); the
+/// grid (16 B per class); 512 B for the seed, the task and the result's slot.
+pub fn run_bytes(classes: usize) -> f64 {
+    let pairs = (classes * classes) as f64;
+    176.0 * pairs + 16.0 * (classes as f64 + 1.0) + 512.0
+}
+
+/// Refuse an ensemble of `count` runs on `grid` whose accumulators, held until they are
+/// pooled in seed order, do not fit the memory available now — before the seeds are
+/// listed (4294967295 seeds aborted allocating 34 GB).
+pub fn check_seeds(count: u32, grid: &MassGrid) -> Result<(), String> {
+    let per_run = run_bytes(grid.classes());
+    crate::memory::fits("seeds", count as usize, count as f64 * per_run)
+        .map_err(|e| format!("{e} ({per_run:.0} B per run on {} classes)", grid.classes()))
+}
 
 /// The seeds of an ensemble of `count` runs: the scenario's seed, then the next ones
 /// (each run can be repeated alone with `agglo run --seed`).
@@ -72,6 +90,7 @@ pub fn measure_one(
 ) -> anyhow::Result<Accumulator> {
     let mut scenario = scenario.clone();
     scenario.seed = seed;
+    sampling.check().map_err(anyhow::Error::msg)?;
     let mut sim = simulation(&scenario).context("setting up the scene")?;
     let mut acc = Accumulator::new(grid.clone(), window, sampling);
     acc.begin(&sim)?;
@@ -102,6 +121,9 @@ pub fn measure(
     workers: &Workers,
     mut progress: impl FnMut(&str),
 ) -> anyhow::Result<Accumulator> {
+    sampling.check().map_err(anyhow::Error::msg)?;
+    let count = u32::try_from(seeds.len()).unwrap_or(u32::MAX);
+    check_seeds(count, grid).map_err(anyhow::Error::msg)?;
     let work = |seed: &u64| -> Result<Accumulator, String> {
         measure_one(scenario, grid, window, sampling, *seed).map_err(|e| format!("{e:#}"))
     };

@@ -16,6 +16,40 @@ use zip::write::SimpleFileOptions;
 use super::estimate::{Array, Data};
 use crate::output::table::{Cell, Column, TableWriter, float, int, text};
 
+/// Refuse `path` (given by `flag`) when its directory is missing or cannot be written,
+/// before any run: a measurement of many seeds used to be lost at the end, when the file
+/// could not be created. A probe file is created in the directory and removed.
+pub fn check_writable(path: &Path, flag: &str) -> anyhow::Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        anyhow::bail!(
+            "{flag} {}: the directory {} does not exist",
+            path.display(),
+            dir.display()
+        );
+    }
+    if path.is_dir() {
+        anyhow::bail!("{flag} {}: is a directory, not a file", path.display());
+    }
+    let probe = dir.join(format!(".agglo-write-probe-{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+        .with_context(|| {
+            format!(
+                "{flag} {}: the directory {} cannot be written",
+                path.display(),
+                dir.display()
+            )
+        })?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
 /// One `.npy` file's bytes.
 pub fn npy_bytes(array: &Array) -> Vec<u8> {
     let mut out = Vec::new();

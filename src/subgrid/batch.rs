@@ -6,8 +6,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::farm::Workers;
+use crate::farm::{Workers, thread_count};
 use crate::kernel::Accumulator;
+use crate::memory::available_bytes;
 
 use super::adjust::apply_rates;
 use super::cell::{CellState, KeptBox, ReplicaRun, STATE_VERSION, run_replica};
@@ -15,6 +16,7 @@ use super::config::Coupling;
 use super::error::SubgridError;
 use super::exchange::{CellInput, CellOutput};
 use super::lift::{box_volume, check_box, check_input, is_trace};
+use super::memory::check_memory;
 use super::restrict::combine;
 
 /// What a cell's step starts from, once its input and state are checked.
@@ -27,11 +29,15 @@ struct Prepared {
 }
 
 /// Check `input` and `state` for `cell` and fix the box volume (a kept box's own).
+/// `at_once` of the cell's boxes may run together and `available` bytes of memory are
+/// free (memory.rs).
 fn prepare(
     c: &Coupling,
     cell: u64,
     input: &CellInput,
     state: Option<&CellState>,
+    at_once: usize,
+    available: Option<f64>,
 ) -> Result<Prepared, SubgridError> {
     check_input(c, cell, input)?;
     if let Some(s) = state {
@@ -42,6 +48,7 @@ fn prepare(
         Some(s) => s.volume,
         None => box_volume(c, cell, input)?,
     };
+    check_step(cell, input.dt, volume, kept.map(|s| s.time))?;
     let ignored = match kept {
         Some(_) if !c.persist => vec![false; input.classes.len()],
         _ => {
@@ -53,12 +60,71 @@ fn prepare(
                 .collect()
         }
     };
+    if kept.is_none() || c.persist {
+        // A box lifted (or adjusted) to the input: its expected bodies and a Poisson
+        // margin of 5 σ. A kept box continued as it is was checked when it was lifted.
+        let lambda: f64 = input
+            .classes
+            .iter()
+            .zip(&ignored)
+            .filter(|&(_, &trace)| !trace)
+            .map(|(k, _)| k.number_density * volume)
+            .sum();
+        let bodies = lambda + 5.0 * lambda.sqrt();
+        let keeps = if c.keep_bodies || c.persist {
+            c.replicas as usize
+        } else {
+            0
+        };
+        check_memory(cell, bodies, at_once, keeps, available)?;
+    }
     Ok(Prepared {
         volume,
         ignored,
         time: state.map_or(0.0, |s| s.time),
         steps: state.map_or(0, |s| s.macro_steps),
     })
+}
+
+/// The range of V·Δt [m³ s] a step may have: every rate is a box sum times 1/(V·Δt)
+/// (counts up to 1e7, masses, momenta, energies), so 1/(V·Δt) must stay far from
+/// overflow (V·Δt = 5e-324 gave NaN rates) and from underflow to 0.
+pub const VOLUME_TIME_RANGE: (f64, f64) = (1e-290, 1e290);
+
+/// Refuse a Δt that no rate can be divided by in a box of `volume` [m³], or that is
+/// lost against a kept box's clock `kept_time` [s] (time + Δt = time: the box would not
+/// move; a box lifted afresh starts at 0).
+fn check_step(cell: u64, dt: f64, volume: f64, kept_time: Option<f64>) -> Result<(), SubgridError> {
+    let (lo, hi) = VOLUME_TIME_RANGE;
+    let vdt = volume * dt;
+    if !(lo..=hi).contains(&vdt) {
+        return Err(SubgridError::input(
+            cell,
+            "dt",
+            format!("{dt:e}"),
+            format!(
+                "with the box of {volume:e} m³, dt must lie in [{:e}, {:e}] s (V·dt in \
+                 [{lo:e}, {hi:e}] m³ s: every rate is divided by it)",
+                lo / volume,
+                hi / volume
+            ),
+        ));
+    }
+    if let Some(time) = kept_time
+        && time + dt == time
+    {
+        return Err(SubgridError::input(
+            cell,
+            "dt",
+            format!("{dt:e}"),
+            format!(
+                "must be above about {:e} s: smaller steps are lost against the cell's time {time:e} \
+                 s (time + dt = time)",
+                time * f64::EPSILON
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The cell's output and new state from its replicas' runs (in replica order).
@@ -121,7 +187,7 @@ pub fn advance_cell(
     state: Option<&CellState>,
 ) -> Result<(CellOutput, CellState), SubgridError> {
     c.check()?;
-    let prepared = prepare(c, cell, input, state)?;
+    let prepared = prepare(c, cell, input, state, 1, available_bytes())?;
     let runs = (0..c.replicas)
         .map(|r| {
             let kept = kept_box(c, state, r);
@@ -188,9 +254,13 @@ pub fn advance_cells(
     if let Err(e) = c.check() {
         return cells.iter().map(|_| Err(e.clone())).collect();
     }
+    // Every thread may be running a box of the largest cell (an estimate per cell
+    // against the memory free now, read once).
+    let at_once = thread_count(workers.threads).min(cells.len() * c.replicas as usize);
+    let available = available_bytes();
     let prepared: Vec<Result<Prepared, SubgridError>> = cells
         .iter()
-        .map(|(cell, input, state)| prepare(c, *cell, input, state.as_ref()))
+        .map(|(cell, input, state)| prepare(c, *cell, input, state.as_ref(), at_once, available))
         .collect();
     let mut tasks = Vec::new();
     for ((cell, input, state), p) in cells.iter().zip(&prepared) {

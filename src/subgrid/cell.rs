@@ -18,8 +18,9 @@ use super::lift::{gas_field, lift, replica_seed};
 use super::restrict::{ClassSums, Replica};
 use crate::resources::{Counters, EnergyLedger};
 
-/// Layout version of [`CellState::to_bytes`]; bumped when it changes.
-pub const STATE_VERSION: u32 = 2;
+/// Layout version of [`CellState::to_bytes`]; bumped when it changes (3: the CRC-32
+/// after the postcard bytes, issue 39).
+pub const STATE_VERSION: u32 = 3;
 
 /// A kept box between macro steps: the scene it was lifted as and the restart
 /// snapshot at the end of the last step (engine/restart.rs), from which the next step
@@ -77,41 +78,140 @@ impl CellState {
         !self.boxes.is_empty()
     }
 
-    /// The state as bytes (postcard: every f64 as its 8 bytes).
+    /// The state as bytes: postcard (every f64 as its 8 bytes; the layout version
+    /// first, as a varint) followed by the CRC-32 of those bytes (u32, little-endian),
+    /// so that damaged bytes are refused rather than read as another state.
     pub fn to_bytes(&self) -> Vec<u8> {
-        postcard::to_allocvec(self).expect("a cell state always encodes")
+        let mut bytes = postcard::to_allocvec(self).expect("a cell state always encodes");
+        let crc = crc32fast::hash(&bytes);
+        bytes.extend_from_slice(&crc.to_le_bytes());
+        bytes
     }
 
-    /// A state from [`Self::to_bytes`]'s bytes; refuses another layout version.
+    /// A state from [`Self::to_bytes`]'s bytes; refuses another layout version, bytes
+    /// whose checksum does not match, and a state whose fields are out of range.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, String> {
-        let s: Self = postcard::from_bytes(bytes)
+        // The version first, so that an older layout is named as such.
+        let (version, _) = postcard::take_from_bytes::<u32>(bytes)
             .map_err(|e| format!("the cell state does not decode ({e})"))?;
-        if s.version != STATE_VERSION {
+        if version != STATE_VERSION {
             return Err(format!(
-                "the cell state has layout version {}, this build reads version {STATE_VERSION}",
-                s.version
+                "the cell state has layout version {version}, this build reads version \
+                 {STATE_VERSION}"
             ));
         }
+        let Some(split) = bytes.len().checked_sub(4) else {
+            return Err(format!(
+                "the cell state is {} bytes, too short to hold its checksum",
+                bytes.len()
+            ));
+        };
+        let (payload, crc) = bytes.split_at(split);
+        let stored = u32::from_le_bytes(crc.try_into().expect("4 bytes"));
+        if crc32fast::hash(payload) != stored {
+            return Err(format!(
+                "the cell state's checksum does not match its {} bytes (damaged bytes)",
+                bytes.len()
+            ));
+        }
+        let (s, rest): (Self, _) = postcard::take_from_bytes(payload)
+            .map_err(|e| format!("the cell state does not decode ({e})"))?;
+        if !rest.is_empty() {
+            return Err(format!(
+                "the cell state has {} bytes after its end",
+                rest.len()
+            ));
+        }
+        s.check_fields()?;
         Ok(s)
+    }
+
+    /// The checks that need no coupling: every number in range (a state made in
+    /// memory by a caller, or read back, never reaches a box with a NaN volume).
+    fn check_fields(&self) -> Result<(), String> {
+        if !(self.time.is_finite() && self.time >= 0.0) {
+            return Err(format!(
+                "time = {:e} (must be ≥ 0 and finite [s])",
+                self.time
+            ));
+        }
+        // A normal number: 1/V and V^(1/3) stay finite and exact enough.
+        if !(self.volume.is_finite() && self.volume >= f64::MIN_POSITIVE) {
+            return Err(format!(
+                "box_volume = {:e} (must be finite and ≥ {:e} [m³])",
+                self.volume,
+                f64::MIN_POSITIVE
+            ));
+        }
+        if let Some(e) = &self.expected {
+            for (k, class) in e.classes.iter().enumerate() {
+                let n = class.number_density;
+                if !(n.is_finite() && n >= 0.0) {
+                    return Err(format!(
+                        "expected.classes[{k}].number_density = {n:e} (must be ≥ 0 and finite \
+                         [1/m³])"
+                    ));
+                }
+                let m = class.mass;
+                if !(m.is_finite() && m > 0.0) {
+                    return Err(format!(
+                        "expected.classes[{k}].mass = {m:e} (must be > 0 and finite [kg])"
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Check that this state can continue `cell` under `c`.
     pub(crate) fn check(&self, c: &Coupling, cell: u64) -> Result<(), SubgridError> {
         let bad = |reason: String| Err(SubgridError::State { cell, reason });
+        if self.version != STATE_VERSION {
+            return bad(format!(
+                "layout version {}, this build makes version {STATE_VERSION}",
+                self.version
+            ));
+        }
         if self.cell != cell {
             return bad(format!("it is cell {}'s state", self.cell));
         }
-        if (c.keep_bodies || c.persist) && self.boxes.len() != c.replicas as usize {
+        let keeps = c.keep_bodies || c.persist;
+        if keeps && self.boxes.len() != c.replicas as usize {
             return bad(format!(
                 "it holds {} boxes; the coupling keeps {} replicas' bodies",
                 self.boxes.len(),
                 c.replicas
             ));
         }
-        if !(self.time.is_finite() && self.time >= 0.0) {
-            return bad(format!("time {:e} s", self.time));
+        if !keeps && !self.boxes.is_empty() {
+            // Its bodies would be dropped without a word.
+            return bad(format!(
+                "it holds {} boxes of bodies (a closed or persistent cell's state); this \
+                 coupling keeps none (keep_bodies and persist are false)",
+                self.boxes.len()
+            ));
         }
-        Ok(())
+        if c.persist != self.expected.is_some() {
+            return bad(if c.persist {
+                "it remembers no cell state; a persistent coupling's state does (it was made \
+                 without persist)"
+                    .into()
+            } else {
+                "it remembers a cell state (made with persist); this coupling has persist = \
+                 false"
+                    .into()
+            });
+        }
+        if let Some(e) = &self.expected
+            && e.classes.len() != c.classes()
+        {
+            return bad(format!(
+                "expected.classes = {} classes (must be {}, one per class of the edges)",
+                e.classes.len(),
+                c.classes()
+            ));
+        }
+        self.check_fields().or_else(bad)
     }
 }
 

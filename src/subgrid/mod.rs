@@ -53,12 +53,13 @@ mod config;
 mod error;
 mod exchange;
 mod lift;
+mod memory;
 mod restrict;
 
 pub use adjust::apply_rates;
 #[cfg(feature = "mpi")]
 pub use batch::serve;
-pub use batch::{ReplicaTask, advance_cell, advance_cells, run_task};
+pub use batch::{ReplicaTask, VOLUME_TIME_RANGE, advance_cell, advance_cells, run_task};
 pub use cell::{CellState, KeptBox, ReplicaRun, STATE_VERSION};
 pub use config::{BoxSize, Coupling, MAX_BODIES, MAX_REPLICAS};
 pub use error::SubgridError;
@@ -67,4 +68,5 @@ pub use lift::{
     MAX_DIAMETER_PER_SIDE, MAX_VOLUME_FRACTION, TRACE_BODIES, box_volume, check_box, check_input,
     draw_counts, expected_impact_density, is_trace, lift, radius_of, replica_seed,
 };
+pub use memory::{KEPT_BYTES_PER_BODY, LIFT_BYTES_PER_BODY, cell_bytes, check_memory};
 pub use restrict::{ClassSums, Replica};

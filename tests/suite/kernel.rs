@@ -484,6 +484,8 @@ fn bad_grids_are_refused_naming_the_problem() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("--window: allowed 0 ≤ T0 < T1"), "{stderr}");
     // quick_demo's primaries (1.796e-3 g) lie above this DustPy grid: said in grams.
+    // (A writable --out: a missing directory is refused before the run, issue 39.)
+    let dir = tempfile::tempdir().unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_agglo"))
         .args([
             "kernel",
@@ -491,7 +493,9 @@ fn bad_grids_are_refused_naming_the_problem() {
             "--bins",
             "dustpy:1e-7,1e-3,7",
         ])
-        .args(["--out", "/nonexistent/x.npz", "-q"])
+        .arg("--out")
+        .arg(dir.path().join("x.npz"))
+        .arg("-q")
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
         .unwrap();
