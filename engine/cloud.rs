@@ -103,6 +103,22 @@ pub struct PlacedBody {
     pub radius: Option<f64>,
 }
 
+impl From<&BodyState> for PlacedBody {
+    /// A body of a run, placed as it is: every field given (hardness follows from the
+    /// temperature), so that a run's state can seed another scene.
+    fn from(b: &BodyState) -> Self {
+        Self {
+            position: b.position.to_array(),
+            velocity: Some(b.velocity.to_array()),
+            primaries: b.primaries,
+            id: Some(b.id),
+            temperature: Some(b.temperature),
+            mass: Some(b.mass),
+            radius: Some(b.radius),
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum VelocityDistribution {

@@ -279,8 +279,7 @@ impl LiveRun {
         );
         let until = Instant::now() + self.linger;
         let mut next_frame = Instant::now() + REPUBLISH;
-        loop {
-            let server = self.server.as_ref().expect("checked above");
+        while let Some(server) = self.server.as_ref() {
             let now = Instant::now();
             if server.clients() == 0 || now >= until || self.stop.load(Ordering::SeqCst) {
                 return;

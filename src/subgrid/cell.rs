@@ -100,14 +100,13 @@ impl CellState {
                  {STATE_VERSION}"
             ));
         }
-        let Some(split) = bytes.len().checked_sub(4) else {
+        let Some((payload, crc)) = bytes.split_last_chunk::<4>() else {
             return Err(format!(
                 "the cell state is {} bytes, too short to hold its checksum",
                 bytes.len()
             ));
         };
-        let (payload, crc) = bytes.split_at(split);
-        let stored = u32::from_le_bytes(crc.try_into().expect("4 bytes"));
+        let stored = u32::from_le_bytes(*crc);
         if crc32fast::hash(payload) != stored {
             return Err(format!(
                 "the cell state's checksum does not match its {} bytes (damaged bytes)",

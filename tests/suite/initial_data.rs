@@ -357,19 +357,7 @@ fn overlapping_end_states_are_separated_into_a_scene_that_validates() {
     .unwrap();
     let mut sim = agglo::kernel::simulation(&run).unwrap();
     sim.run().unwrap();
-    let end: Vec<PlacedBody> = sim
-        .bodies()
-        .iter()
-        .map(|b| PlacedBody {
-            position: b.position.to_array(),
-            velocity: Some(b.velocity.to_array()),
-            primaries: b.primaries,
-            id: Some(b.id),
-            temperature: Some(b.temperature),
-            mass: Some(b.mass),
-            radius: Some(b.radius),
-        })
-        .collect();
+    let end: Vec<PlacedBody> = sim.bodies().iter().map(PlacedBody::from).collect();
     run.cloud.count = end.len();
     run.cloud.bodies = end.clone();
     let refused = run.validate().is_err();

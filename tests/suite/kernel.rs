@@ -64,7 +64,7 @@ fn monomer_kernel_in_ballistic_aggregation_is_enskogs() {
         .with_settings(&["cloud.count=2000".into(), "time.end=1e-4".into()])
         .unwrap();
     let b = base.primary_radius();
-    let m0 = base.material.rho * 4.0 / 3.0 * std::f64::consts::PI * b.powi(3);
+    let m0 = base.primary_mass();
     // Class 0 the monomers, class 1 the dimers, then wider.
     let grid = MassGrid::from_edges(vec![0.5 * m0, 1.5 * m0, 2.5 * m0, 1e3 * m0], "test").unwrap();
     let seeds = kernel::seeds(&base, 40);
@@ -128,8 +128,7 @@ fn sampled_geometric_kernel_describes_the_epoch_of_k() {
     let base = shipped("ballistic_aggregation.json")
         .with_settings(&["cloud.count=2000".into(), "time.end=0.2".into()])
         .unwrap();
-    let b = base.primary_radius();
-    let m0 = base.material.rho * 4.0 / 3.0 * std::f64::consts::PI * b.powi(3);
+    let m0 = base.primary_mass();
     let grid = MassGrid::from_edges(vec![0.5 * m0, 1.5 * m0, 2.5 * m0, 1e4 * m0], "test").unwrap();
     let acc = kernel::measure(
         &base,
@@ -169,7 +168,7 @@ fn burn_in_removes_the_start_up_transient() {
         .with_settings(&["cloud.count=2000".into(), "time.end=2e-4".into()])
         .unwrap();
     let b = base.primary_radius();
-    let m0 = base.material.rho * 4.0 / 3.0 * std::f64::consts::PI * b.powi(3);
+    let m0 = base.primary_mass();
     let grid = MassGrid::from_edges(vec![0.5 * m0, 1.5 * m0, 1e4 * m0], "test").unwrap();
     let windows = [(0.0, 2.5e-5), (2.5e-5, 5e-5), (5e-5, 1e-4), (1e-4, 2e-4)];
     let mut accs: Vec<Accumulator> = windows

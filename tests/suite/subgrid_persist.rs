@@ -222,15 +222,7 @@ fn direct_tank(c: &Coupling, start: &CellInput, steps: u64, seed: u64) -> (f64, 
         let mut kept: Vec<PlacedBody> = bodies
             .iter()
             .filter(|_| uniform() >= F)
-            .map(|b| PlacedBody {
-                position: b.position.to_array(),
-                velocity: Some(b.velocity.to_array()),
-                primaries: b.primaries,
-                id: Some(b.id),
-                temperature: Some(b.temperature),
-                mass: Some(b.mass),
-                radius: Some(b.radius),
-            })
+            .map(PlacedBody::from)
             .collect();
         // In: Poisson(F n0 V) monomers (about 1000), at free places: a sum of Poisson
         // draws of mean ≤ 10 each (by inversion, which e^−λ would underflow for λ = 1000).
