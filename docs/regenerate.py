@@ -125,6 +125,70 @@ def scan(args, subdir, stem):
 
 P02_SCAN = ["scenarios/paper2002_inverse.json", "--gene", "box.half_width"]
 
+
+def readings(args, subdir, keep_runs=True):
+    """`agglo study readings ARGS` into docs/study/readings/SUBDIR: the table (readings.md),
+    one row per reading (readings.csv), one per run (runs.csv, unless too big to store) and
+    the chart when the study draws one."""
+    def make(agglo, out, check):
+        target = out / "study" / "readings" / subdir
+        with tempfile.TemporaryDirectory() as tmp:
+            extra = args(agglo) if callable(args) else args
+            run([agglo, "study", "readings", *extra, "--out", tmp])
+            target.mkdir(parents=True, exist_ok=True)
+            for name in ["readings.md", "readings.csv", "runs.csv", "readings.png",
+                         "readings.svg"]:
+                if name == "runs.csv" and not keep_runs:
+                    continue
+                if (pathlib.Path(tmp) / name).exists():
+                    shutil.copy(pathlib.Path(tmp) / name, target / name)
+    return make
+
+
+def readings_files(subdir, keep_runs=True):
+    names = ["readings.md", "readings.csv"] + (["runs.csv"] if keep_runs else [])
+    return [f"study/readings/{subdir}/{n}" for n in names]
+
+
+P04_READINGS = ["scenarios/paper2004_best.json", "--target-growth", "3.23",
+                "--max-steps", "2000000"]
+P02_READINGS = ["scenarios/paper2002_best.json", "--p02-steps", "200", "--target-growth", "2",
+                "--max-steps", "2000000"]
+# The D of each P02 readings table: "" is the scenario's own 1e-5 m.
+P02_D = {"p02": [], "p02_D1e-6": ["--set", "box.half_width=1e-6"],
+         "p02_D1e-4": ["--set", "box.half_width=1e-4"]}
+
+
+def readings_but(scenario, left_out, args):
+    """Every reading `agglo study readings SCENARIO --list` offers except the baseline (always
+    run) and LEFT_OUT (which have tables of their own), then ARGS."""
+    def choose(agglo):
+        with tempfile.TemporaryDirectory() as tmp:
+            listed = run([agglo, "study", "readings", scenario, "--out", tmp, "--list"])
+        names = [line.split()[0] for line in listed.splitlines() if line.strip()]
+        names = [n for n in names if n != "baseline" and n not in left_out]
+        return [*args, "--only", ",".join(names)]
+    return choose
+
+
+def optimize(scenario, subdir, extra):
+    """`agglo optimize` into docs/results/inverse/SUBDIR: its generations, best strings
+    (with the closing check on fresh seeds) and best scenario, and the charts."""
+    def make(agglo, out, check):
+        target = out / "results" / "inverse" / subdir
+        with tempfile.TemporaryDirectory() as tmp:
+            run([agglo, "optimize", f"scenarios/{scenario}", "--out", tmp, *extra, "-q"])
+            target.mkdir(parents=True, exist_ok=True)
+            for name in ["generations.csv", "best.json", "best_scenario.json",
+                         "convergence.png", "best_radii.png"]:
+                shutil.copy(pathlib.Path(tmp) / name, target / name)
+    return make
+
+
+def optimize_files(subdir):
+    return [f"results/inverse/{subdir}/{n}"
+            for n in ["generations.csv", "best.json", "best_scenario.json"]]
+
 SECONDS = re.compile(r"in [0-9.]+ s$", re.M)
 
 
@@ -165,6 +229,55 @@ TASKS = [
               "p02_d_sweep", "scan_fine"),
          ["results/inverse/p02_d_sweep/scan_fine.csv"],
          what="docs/results/inverse: the fine D grid"),
+    *[Task(f"readings-{d.replace('_', '-').lower()}",
+           readings(readings_but("scenarios/paper2002_best.json", ["every_contact"],
+                                 [*P02_READINGS, "--seeds", "400", *D]), d),
+           readings_files(d),
+           what=f"docs/study/readings: P02's readings at D = {D[-1].split('=')[1] if D else '1e-5'} m")
+      for d, D in P02_D.items()],
+    *[Task(f"readings-every-contact-{d.replace('_', '-').lower()}",
+           readings([*P02_READINGS, "--seeds", "400", "--only", "every_contact", *D],
+                    f"every_contact/{d}"),
+           readings_files(f"every_contact/{d}"),
+           what="docs/study/readings: every contact of a step, P02")
+      for d, D in P02_D.items()],
+    Task("readings-p02-combinations",
+         readings([*P02_READINGS, "--seeds", "100",
+                   "--combine", "pair_hardness_harmonic|pair_hardness_arithmetic|pair_hardness_max",
+                   "--combine", "bond_any_iterate",
+                   "--combine", "solver_plain|solver_plain_cap_parity",
+                   "--combine", "duration_p04", "--combine", "friction_constant",
+                   "--combine", "cooling_p02_as_printed"], "p02_combinations", keep_runs=False),
+         readings_files("p02_combinations", keep_runs=False),
+         what="docs/study/readings: P02's 192 combinations (≈ 1 min)"),
+    Task("readings-p04", readings(readings_but("scenarios/paper2004_best.json",
+                                ["cooling_explicit", "every_contact"],
+                                [*P04_READINGS, "--seeds", "40"]), "p04"), readings_files("p04"),
+         slow=True, what="docs/study/readings: P04's readings, 40 seeds (≈ 3 min)"),
+    Task("readings-p04-cooling-explicit",
+         readings([*P04_READINGS, "--seeds", "2", "--only", "cooling_explicit"],
+                  "p04_cooling_explicit"),
+         readings_files("p04_cooling_explicit"), slow=True,
+         what="docs/study/readings: P04 with explicit cooling (≈ 2 min)"),
+    Task("readings-every-contact-p04",
+         readings([*P04_READINGS, "--seeds", "40", "--only", "every_contact",
+                   "--set", 'time.core="stepped"'], "every_contact/p04"),
+         readings_files("every_contact/p04"),
+         what="docs/study/readings: every contact of a step, P04 (≈ 25 s)"),
+    Task("readings-p04-combinations",
+         readings([*P04_READINGS, "--seeds", "12",
+                   "--combine", "solver_plain|solver_plain_cap_parity",
+                   "--combine", "contact_nearest_neighbour", "--combine", "v_rel_yz_10",
+                   "--combine", "mu_as_printed", "--combine", "duration_p02"],
+                  "p04_combinations"),
+         readings_files("p04_combinations"), slow=True,
+         what="docs/study/readings: P04's 48 combinations (≈ 5 min)"),
+    Task("inverse-p04", optimize("paper2004_inverse.json", "p04_run", ["--threads", "2"]),
+         optimize_files("p04_run"),
+         what="docs/inverse.md, docs/results/inverse: P04's GA (≈ 1 min)"),
+    Task("inverse-p02", optimize("paper2002_inverse.json", "p02_run", []),
+         optimize_files("p02_run"), slow=True,
+         what="docs/inverse.md, docs/results/inverse: P02's GA (≈ 2.5 min on one process)"),
     Task("tutorial", tutorial, ["results/python_tutorial.txt"], slow=True, needs_agglo=False,
          what="docs/python.md: what docs/python_tutorial.py prints (needs `import agglo`; "
               "python/test.sh runs it)"),
@@ -326,7 +439,7 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     if a.list:
         for t in TASKS:
-            print(f"{t.name:<18} {'(slow) ' if t.slow else ''}{t.what}")
+            print(f"{t.name:<33} {'(slow) ' if t.slow else ''}{t.what}")
         return 0
     names = {t.name for t in TASKS}
     for n in a.only or []:
