@@ -241,6 +241,12 @@ TASKS = [
            readings_files(f"every_contact/{d}"),
            what="docs/study/readings: every contact of a step, P02")
       for d, D in P02_D.items()],
+    *[Task(f"readings-p02-papers-as-printed-d{D}",
+           readings([*P02_READINGS, "--seeds", "400", "--only", "papers_as_printed",
+                     "--set", f"box.half_width={D}"], f"p02_papers_as_printed/D{D}"),
+           readings_files(f"p02_papers_as_printed/D{D}"),
+           what=f"docs/study/readings: P02 as printed, further out (D = {D} m)")
+      for D in ["2e-4", "4e-4", "1e-3"]],
     Task("readings-p02-combinations",
          readings([*P02_READINGS, "--seeds", "100",
                    "--combine", "pair_hardness_harmonic|pair_hardness_arithmetic|pair_hardness_max",
@@ -392,6 +398,30 @@ def docs_quote_the_peer_counts(table: pathlib.Path) -> list[str]:
     return out
 
 
+PLUS_MINUS = re.compile(r"(\d+\.\d+) ± (\d+\.\d+)")
+
+
+def quoted_figures_are_made(page: pathlib.Path, sources: list[pathlib.Path]) -> list[str]:
+    """Every `a ± b` the page writes is a figure of one of its generated SOURCES, as
+    printed there or rounded to fewer digits (the page may quote 2.56 ± 0.02 for a table's
+    2.556 ± 0.019): a regenerated table that moves a figure fails until the prose follows."""
+    made = []
+    for src in sources:
+        for a, b in PLUS_MINUS.findall(src.read_text()):
+            made.append((float(a), float(b)))
+
+    def decimals(text):
+        return len(text.split(".")[1])
+
+    out = []
+    for a, b in PLUS_MINUS.findall(page.read_text()):
+        da, db = decimals(a), decimals(b)
+        if not any(abs(round(x, da) - float(a)) < 0.5 * 10 ** -da
+                   and abs(round(y, db) - float(b)) < 1.5 * 10 ** -db for x, y in made):
+            out.append(f"{page.relative_to(ROOT)} quotes {a} ± {b}, which no table made")
+    return out
+
+
 def compare(task: Task, fresh_docs: pathlib.Path, agglo: pathlib.Path) -> list[str]:
     out = []
     for rel in task.files:
@@ -410,6 +440,10 @@ def compare(task: Task, fresh_docs: pathlib.Path, agglo: pathlib.Path) -> list[s
         out += readme_quotes_the_pandas_slope(agglo)
     if task.name == "peers":
         out += docs_quote_the_peer_counts(ROOT / "docs" / task.files[0])
+    if task.name.startswith("readings-"):
+        readings_dir = ROOT / "docs" / "study" / "readings"
+        out += quoted_figures_are_made(readings_dir / "README.md",
+                                       sorted(readings_dir.rglob("readings.md")))
     if task.name == "tutorial":
         out += python_md_quotes_the_fits(ROOT / "docs" / task.files[0])
     return out
