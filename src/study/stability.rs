@@ -543,6 +543,10 @@ pub fn run_misses(
         let _ = sim.run();
         Ok(sim.counters().impacts)
     };
+    // A seed, its reference count and one count per setting are kept: refused before
+    // they are listed when they cannot fit.
+    let kept = 16 + 8 * dts.len() * factors.len().max(1);
+    crate::memory::fits("seeds", seeds, seeds as f64 * kept as f64).map_err(anyhow::Error::msg)?;
     let seeds: Vec<u64> = (0..seeds.max(1) as u64)
         .map(|k| base.seed.wrapping_add(k))
         .collect();

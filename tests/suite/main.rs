@@ -14,6 +14,7 @@ mod conservation;
 mod damaged_input;
 mod determinism;
 mod docs;
+mod door_refusals;
 mod energy_ledgers;
 mod events;
 mod extension;
