@@ -22,6 +22,7 @@ mod extension_binary;
 mod fields;
 mod first_day;
 mod fuzz;
+mod fuzz_doors;
 mod hooks;
 mod initial_data;
 mod inverse;
