@@ -256,6 +256,20 @@ fn study_seed_counts_are_checked_against_the_memory_before_they_are_listed() {
         err.contains("runs (readings × --seeds) need about") && err.contains("allowed at most"),
         "{err}"
     );
+    // Stability: refused before its maps are drawn (they take seconds), not after.
+    let out = agglo(&[
+        "study",
+        "stability",
+        "--seeds",
+        "4294967295",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("4294967295 seeds need about"), "{err}");
+    // Neither study wrote anything.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     // Accuracy and stability, through the library (their seeds are usize there).
     let s = Scenario::load(&quick_demo()).unwrap();
     let options = agglo::study::accuracy::AccuracyOptions {
