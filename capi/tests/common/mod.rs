@@ -1,5 +1,6 @@
-//! What the C-program tests share: the crate's directory, and libagglo_c.so built by
-//! the cargo that runs them.
+//! For the C fuzz harness (c_fuzz.rs): the crate's directory, libagglo_c.so built by
+//! the cargo that runs it (as c_program.rs builds it for the example), and a C
+//! program compiled against the header and the library with warnings as errors.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
