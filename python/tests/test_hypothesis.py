@@ -16,14 +16,15 @@ import pathlib
 import numpy as np
 import pytest
 
-hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, example, given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-from hypothesis.extra import numpy as hnp  # noqa: E402
+# Not importorskip: the test extra installs Hypothesis (python/test.sh), and a CI without
+# it should fail, not skip these quietly.
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
-import agglo  # noqa: E402
-import agglo.kernel  # noqa: E402
-from agglo.subgrid import Coupling  # noqa: E402
+import agglo
+import agglo.kernel
+from agglo.subgrid import Coupling
 
 settings.register_profile("ci", derandomize=True, deadline=None, database=None,
                           suppress_health_check=[HealthCheck.too_slow])
