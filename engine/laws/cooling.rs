@@ -550,10 +550,18 @@ impl Complex {
         }
     }
 
-    /// 1/z by Smith's algorithm: dividing through by the larger part first, so that a
+    /// 1/z: z̄/|z|² while |z|² is a normal number (every scene that ran before, bit for
+    /// bit), else Smith's algorithm, dividing through by the larger part first, so that a
     /// tiny z (a slope k_r θ³ of 1e-164 /s, a heat capacity of 1e163 J/(kg·K)) does not
     /// square to 0 and give a NaN residue, nor a huge one overflow.
     fn recip(self) -> Self {
+        let norm = self.re * self.re + self.im * self.im;
+        if norm.is_normal() {
+            return Self {
+                re: self.re / norm,
+                im: -self.im / norm,
+            };
+        }
         if self.re.abs() >= self.im.abs() {
             let r = self.im / self.re;
             let d = self.re + self.im * r;
