@@ -82,7 +82,7 @@ pub struct Material {
     pub rho: f64,
     /// Base hardness H0 [Pa].
     pub H0: f64,
-    /// Heat capacity C [J/(kg K)].
+    /// Heat capacity C [J/(kg K)], 0 < C ≤ 1e100.
     pub C: f64,
     /// Activation energy Q [J/mol] (P02's U); 0 disables thermal softening.
     #[serde(default)]

@@ -37,6 +37,9 @@ pub struct MemoryEstimate {
     pub bytes: f64,
     /// Memory available now [B] (None where the kernel does not say).
     pub available: Option<f64>,
+    /// Runs of the scene held in memory at once (an ensemble's threads); `bytes`
+    /// counts them all.
+    pub runs_at_once: usize,
 }
 
 impl MemoryEstimate {
@@ -58,12 +61,27 @@ impl MemoryEstimate {
             bodies,
             bytes: BASE_BYTES + per_body * bodies as f64,
             available: available_bytes(),
+            runs_at_once: 1,
         }
     }
 
-    /// Bytes per body of the estimate [B].
+    /// The estimate for an ensemble of `runs` unrecorded runs of `scenario` on `threads`
+    /// worker threads (0 = one per core): min(runs, threads) scenes are held at once.
+    /// Each run alone passed `run`'s check, so `agglo kernel`, `ensemble()` and the
+    /// studies aborted on a scene that `agglo run` refuses, or on threads × a scene.
+    pub fn of_runs(scenario: &Scenario, runs: usize, threads: usize) -> Self {
+        let one = Self::of_run(scenario, false);
+        let at_once = runs.min(crate::farm::thread_count(threads)).max(1);
+        Self {
+            bytes: BASE_BYTES + (one.bytes - BASE_BYTES) * at_once as f64,
+            runs_at_once: at_once,
+            ..one
+        }
+    }
+
+    /// Bytes per body of one run [B].
     fn per_body(&self) -> f64 {
-        (self.bytes - BASE_BYTES) / self.bodies.max(1) as f64
+        (self.bytes - BASE_BYTES) / (self.bodies.max(1) * self.runs_at_once.max(1)) as f64
     }
 
     /// One line for `agglo validate`.
@@ -89,6 +107,21 @@ impl MemoryEstimate {
         let Some(available) = self.available else {
             return Ok(None);
         };
+        if self.bytes > available && self.runs_at_once > 1 {
+            let fit = ((available - BASE_BYTES) / (self.bytes - BASE_BYTES)
+                * self.runs_at_once as f64)
+                .floor();
+            return Err(format!(
+                "cloud.count: {} runs at once of {} bodies each need about {:.1} GB ({:.0} B \
+                 per body), but only {:.1} GB of memory is available; allowed at most {fit:.0} \
+                 runs at once on this machine now (fewer threads), or fewer bodies",
+                self.runs_at_once,
+                self.bodies,
+                self.bytes / 1e9,
+                self.per_body(),
+                available / 1e9,
+            ));
+        }
         if self.bytes > available {
             return Err(format!(
                 "cloud.count: {} bodies need about {:.1} GB ({:.0} B per body), but only {:.1} GB \
@@ -132,6 +165,13 @@ pub fn fits(what: &str, count: usize, bytes: f64) -> Result<(), String> {
     Ok(())
 }
 
+/// Bytes one copy of `scenario` holds [B]: its fixed part and its listed bodies. A
+/// study that lists a scene per run (readings × seeds) holds this many per run.
+pub fn scenario_bytes(scenario: &Scenario) -> f64 {
+    (std::mem::size_of::<Scenario>()
+        + scenario.cloud.bodies.len() * std::mem::size_of::<crate::cloud::PlacedBody>()) as f64
+}
+
 /// Memory available to a new process [B], from /proc/meminfo (Linux).
 pub fn available_bytes() -> Option<f64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
@@ -149,6 +189,7 @@ mod tests {
             bodies,
             bytes: BASE_BYTES + BYTES_PER_BODY * bodies as f64,
             available: Some(available),
+            runs_at_once: 1,
         }
     }
 
@@ -184,6 +225,34 @@ mod tests {
         let e = limited.check().unwrap_err();
         assert!(
             e.contains("1450 B per body") && e.contains("N ≤ 6.786e5"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn runs_held_at_once_multiply_the_estimate_and_the_refusal_says_how_many_fit() {
+        let mut scenario = Scenario::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/quick_demo.json"),
+        )
+        .unwrap();
+        scenario.cloud.count = 1_000_000;
+        // 3 runs on 8 threads: 3 at once; 20 runs on 4 threads: 4.
+        let three = MemoryEstimate::of_runs(&scenario, 3, 8);
+        assert_eq!(
+            (three.runs_at_once, three.bytes),
+            (3, BASE_BYTES + 3.0 * 650e6)
+        );
+        let four = MemoryEstimate::of_runs(&scenario, 20, 4);
+        assert_eq!(four.runs_at_once, 4);
+        // (1.5e9 − 16e6) / 650e6 = 2.28: two runs fit, not four.
+        let e = MemoryEstimate {
+            available: Some(1.5e9),
+            ..four
+        }
+        .check()
+        .unwrap_err();
+        assert!(
+            e.contains("4 runs at once") && e.contains("at most 2 runs") && e.contains("650 B"),
             "{e}"
         );
     }

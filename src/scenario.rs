@@ -393,7 +393,15 @@ impl Scenario {
         let m = &self.material;
         v.positive("material.rho", m.rho);
         v.positive("material.H0", m.H0);
-        v.positive("material.C", m.C);
+        // Real heat capacities lie within 1e2…2e4 J/(kg·K); 1e200 validated, then every
+        // temperature went NaN at step 1 (issue 39), so a bound well above any material.
+        v.range_open_closed(
+            "material.C",
+            m.C,
+            0.0,
+            MAX_HEAT_CAPACITY,
+            "0 < C ≤ 1e100 J/(kg·K)",
+        );
         v.non_negative("material.Q", m.Q);
         v.non_negative("material.alpha", m.alpha);
         if let Some(g) = m.gamma {
@@ -591,7 +599,12 @@ impl Scenario {
 
 /// Temperatures [K] whose fourth power (the radiation law, θ⁴) stays finite with room
 /// for the Stefan–Boltzmann factor: θ ≤ 1e70 K.
-const MAX_TEMPERATURE: f64 = 1e70;
+pub const MAX_TEMPERATURE: f64 = 1e70;
+
+/// The largest specific heat capacity C accepted [J/(kg·K)]: far above any material
+/// (≈ 1.4e4 for hydrogen), far below where m C or the cooling constants σεA/(m C) leave
+/// f64's range.
+const MAX_HEAT_CAPACITY: f64 = 1e100;
 
 impl Scenario {
     /// The derived constants of the scene are finite and, where they divide, not zero:
@@ -853,6 +866,11 @@ impl Validator {
     }
     fn range_open(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
         if !(x > lo && x < hi) {
+            self.push(path, allowed, x);
+        }
+    }
+    fn range_open_closed(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
+        if !(x > lo && x <= hi) {
             self.push(path, allowed, x);
         }
     }

@@ -161,8 +161,15 @@ int main(int argc, char **argv) {
     check(agglo_state_to_bytes(copy, NULL, 0, &n_again), "state size");
     if (n_again != n_bytes) failures++;
     printf("state: %zu bytes, made again\n", n_bytes);
-    bytes[0] ^= 0xff;
+    /* Damaged bytes are refused and leave `copy` as it was: one flipped bit (the bytes
+       end in a CRC-32), then the bytes cut short. */
+    AggloCellState *kept = copy;
+    bytes[n_bytes / 2] ^= 0x01;
+    if (agglo_state_from_bytes(bytes, n_bytes, &copy) != AGGLO_STATUS_STATE) failures++;
+    bytes[n_bytes / 2] ^= 0x01;
     if (agglo_state_from_bytes(bytes, n_bytes / 2, &copy) != AGGLO_STATUS_STATE) failures++;
+    if (copy != kept) failures++;
+    printf("damaged state: refused: %s\n", agglo_last_error());
     free(bytes);
     agglo_state_free(copy);
     agglo_state_free(state);

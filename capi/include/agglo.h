@@ -141,7 +141,7 @@ enum AggloStatus agglo_cell_advance(const struct AggloCoupling *coupling,
                                     struct AggloOutput **out);
 
 // Advance a macro step's `n_cells` cells as independent tasks on `threads` worker
-// threads (0: one per core). Cell i has id `cells[i]`, input `inputs[i]` and state
+// threads (0: one per core; at most 1024). Cell i has id `cells[i]`, input `inputs[i]` and state
 // `states[i]` (NULL: lift from the input), replaced on success as in
 // `agglo_cell_advance`; `outs[i]` gets its output, or NULL when it failed (what it held
 // before is overwritten, not freed), and

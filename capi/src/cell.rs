@@ -95,7 +95,7 @@ pub unsafe extern "C" fn agglo_cell_advance(
 }
 
 /// Advance a macro step's `n_cells` cells as independent tasks on `threads` worker
-/// threads (0: one per core). Cell i has id `cells[i]`, input `inputs[i]` and state
+/// threads (0: one per core; at most 1024). Cell i has id `cells[i]`, input `inputs[i]` and state
 /// `states[i]` (NULL: lift from the input), replaced on success as in
 /// `agglo_cell_advance`; `outs[i]` gets its output, or NULL when it failed (what it held
 /// before is overwritten, not freed), and
@@ -137,6 +137,9 @@ pub unsafe extern "C" fn agglo_cells_advance(
             out_pointer(states, "states")?;
             out_pointer(outs, "outs")?;
         }
+        // One OS thread each: 100000 started that many (issue 39).
+        agglo::farm::check_threads(threads)
+            .map_err(|e| Failure::argument(format!("threads: {e}")))?;
         // SAFETY: states holds n_cells handles, each NULL or live.
         let handles = unsafe { slice(states.cast_const(), n_cells, "states") }?;
         // Each cell's own refusal (an unknown drag, a wrong length, a state shared with

@@ -22,7 +22,9 @@
 //! - **Errors are codes**: every call that can fail returns an [`AggloStatus`];
 //!   when it is not `AGGLO_STATUS_OK`, [`error::agglo_last_error`] gives the message
 //!   (naming the cell and the field, with the value and the allowed range), valid until
-//!   the next agglo call on the same thread. Outputs are untouched by a failed call.
+//!   the next agglo call on the same thread. Outputs are untouched by a failed call,
+//!   except in a batch ([`cell::agglo_cells_advance`]), where one cell's fault fails that
+//!   cell alone: every entry's status is written, a failed cell's output is NULL.
 //! - **No panic crosses the boundary**: every call runs under `catch_unwind`; a bug
 //!   inside comes back as `AGGLO_STATUS_INTERNAL` with its message.
 //! - **Determinism**: a cell's output depends only on the coupling, the cell id, the

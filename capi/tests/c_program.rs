@@ -81,6 +81,7 @@ fn the_c_example_compiles_runs_and_its_checks_hold() {
         "all checks hold",
         "alone: the same bytes as in the batch",
         "bad input: status 3: cell 7: classes[2].number_density",
+        "damaged state: refused: state: ",
     ] {
         assert!(stdout.contains(line), "no {line:?} in:\n{stdout}");
     }
@@ -149,6 +150,30 @@ fn nulls_and_bad_lengths_are_refused_by_name() {
         assert_eq!(status, AggloStatus::Config);
         assert!(message().contains("persist"), "{}", message());
         assert!(coupling.is_null());
+        // A thread count beyond any machine (each is an OS thread) is refused by name.
+        let good = [1e-9, 1e-6];
+        let mut live = std::ptr::null_mut();
+        let status =
+            agglo_coupling_load(path.as_ptr(), good.as_ptr(), 2, std::ptr::null(), &mut live);
+        assert_eq!(status, AggloStatus::Ok, "{}", message());
+        let status = agglo_c::cell::agglo_cells_advance(
+            live,
+            0,
+            0,
+            std::ptr::null(),
+            std::ptr::null(),
+            std::ptr::null_mut(),
+            std::ptr::null_mut(),
+            std::ptr::null_mut(),
+            100_000,
+        );
+        assert_eq!(status, AggloStatus::Argument);
+        assert!(
+            message().starts_with("threads: allowed 0 ≤ threads ≤ 1024"),
+            "{}",
+            message()
+        );
+        agglo_coupling_free(live);
         assert_eq!(agglo_coupling_classes(std::ptr::null()), 0);
         agglo_coupling_free(std::ptr::null_mut());
     }

@@ -550,11 +550,32 @@ impl Complex {
         }
     }
 
+    /// 1/z: z̄/|z|² while |z|² is a normal number (every scene that ran before, bit for
+    /// bit), else Smith's algorithm, dividing through by the larger part first, so that a
+    /// tiny z (a slope k_r θ³ of 1e-164 /s, a heat capacity of 1e163 J/(kg·K)) does not
+    /// square to 0 and give a NaN residue, nor a huge one overflow.
     fn recip(self) -> Self {
         let norm = self.re * self.re + self.im * self.im;
-        Self {
-            re: self.re / norm,
-            im: -self.im / norm,
+        if norm.is_normal() {
+            return Self {
+                re: self.re / norm,
+                im: -self.im / norm,
+            };
+        }
+        if self.re.abs() >= self.im.abs() {
+            let r = self.im / self.re;
+            let d = self.re + self.im * r;
+            Self {
+                re: 1.0 / d,
+                im: -r / d,
+            }
+        } else {
+            let r = self.re / self.im;
+            let d = self.re * r + self.im;
+            Self {
+                re: r / d,
+                im: -1.0 / d,
+            }
         }
     }
 
@@ -1225,5 +1246,29 @@ mod tests {
         let sourceless = cooling_law(1e-2, 7e-12, 0.0, 0.0);
         assert_eq!(sourceless.advance(1e9, 1e6), 0.0);
         assert!(sourceless.advance(1e9, 1.0) > 0.0);
+    }
+
+    /// Radiation so weak that k_r² underflows (a heat capacity of 1e163 J/(kg·K) or an
+    /// emissivity of 1e-160 on a 0.5 mm grain: k_r ≈ 5e-171 /(s K³)) squared the complex
+    /// slope to 0 and made every temperature NaN at step 1 (issue 39). Over a Δt long
+    /// enough to move θ, the exact step must match the explicit one: the change is
+    /// Δθ ≈ k_r (θ⁴ − θs⁴) Δt ≈ 0.34 K here, and its curvature term is Δθ·(4Δθ/θ) ≈ 3e-3 of
+    /// it, so 1 % separates the right step from a wrong one.
+    #[test]
+    fn radiation_too_weak_to_square_still_cools_exactly() {
+        for (kc, kr) in [(0.0, 5.4e-171), (1e-200, 5.4e-171), (0.0, 1e-250)] {
+            let law = cooling_law(kc, kr, 400.0, 300.0);
+            let (theta, dt) = (500.0, 0.34 / (kr * (500f64.powi(4) - 300f64.powi(4))));
+            let next = law.advance(theta, dt);
+            let explicit = law.explicit_step(theta, dt);
+            assert!(next.is_finite(), "k_r {kr:e}: {next}");
+            let (change, expected) = (theta - next, theta - explicit);
+            assert!(
+                relative_error(change, expected) < 1e-2,
+                "k_r {kr:e}: Δθ {change} against {expected}"
+            );
+            // And over an ordinary step, θ does not move at all (or by an ulp).
+            assert!((law.advance(theta, 1e-4) - theta).abs() <= 1e-13 * theta);
+        }
     }
 }

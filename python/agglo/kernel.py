@@ -63,12 +63,14 @@ def measure(scenario, bins: str, out, *, seeds: int = 8, threads: int = 0, windo
     long table ``parquet`` if given, and returns the file loaded (in ``load_units``).
     Needs the compiled package (the rest of this module does not)."""
     from . import _agglo
+    from ._args import MAX_THREADS, whole
 
     if units not in ("si", "cgs"):
         raise ValueError(f"measure: units: 'si' or 'cgs' (got {units!r})")
     t0, t1 = (0.0, float("inf")) if window is None else (float(window[0]), float(window[1]))
     _agglo.measure_kernel(
-        scenario._inner, bins, str(out), int(seeds), int(threads), (t0, t1), units == "cgs",
+        scenario._inner, bins, str(out), whole("seeds", seeds, 1, 2**32 - 1),
+        whole("threads", threads, 0, MAX_THREADS), (t0, t1), units == "cgs",
         None if parquet is None else str(parquet),
     )
     return load(out, units=load_units)
@@ -114,13 +116,27 @@ def load(path, units: str = "cgs") -> KernelFile:
     (``"cgs"`` or ``"si"``; an SI file is converted to cgs on request and back)."""
     if units not in ("cgs", "si"):
         raise ValueError(f"units: allowed 'cgs' or 'si' (got {units!r})")
-    with np.load(Path(path), allow_pickle=False) as z:
-        raw = {name: z[name] for name in z.files}
+    raw = _read_npz(Path(path))
     file_units = str(raw["units"])
-    declared = json.loads(str(raw["array_units"]))
+    if file_units not in ("si", "cgs"):
+        raise _damaged(path, f"units: 'si' or 'cgs' (got {file_units[:40]!r})")
+    declared = _json_entry(path, raw, "array_units")
+    scenario = _json_entry(path, raw, "scenario")
+    if not isinstance(declared, dict):
+        raise _damaged(path, "array_units: not a mapping of array names to units")
+    if not isinstance(scenario, dict):
+        raise _damaged(path, "scenario: not a JSON object")
+    if raw["mass_centres"].ndim != 1:
+        raise _damaged(path, f"mass_centres: shape {raw['mass_centres'].shape} (one value "
+                             "per class)")
     arrays, out_units = {}, {}
     for name, value in raw.items():
         unit = declared.get(name, "-")
+        if not isinstance(unit, str):
+            raise _damaged(path, f"array_units: the unit of {name} is not a string")
+        if value.dtype.kind not in "Ufiub":
+            raise _damaged(path, f"{name}: an array of {value.dtype} (kernel files hold "
+                                 "numbers and text)")
         if value.dtype.kind == "U":
             arrays[name] = str(value) if value.ndim == 0 else [str(v) for v in value]
             out_units[name] = "-"
@@ -140,8 +156,53 @@ def load(path, units: str = "cgs") -> KernelFile:
         arrays=arrays,
         array_units=out_units,
         units=units,
-        scenario=json.loads(arrays["scenario"]),
+        scenario=scenario,
     )
+
+
+#: Entries every kernel file holds (docs/outputs.md, "agglo kernel").
+_REQUIRED = ("units", "array_units", "scenario", "mass_centres")
+
+
+def _damaged(path, why: str) -> ValueError:
+    return ValueError(f"{path}: not a readable agglo kernel file (.npz written by `agglo "
+                      f"kernel`): {why}")
+
+
+def _read_npz(path: Path) -> dict:
+    """Every array of the .npz at ``path``; a ValueError naming the file and what is wrong
+    for anything else (a damaged file raised raw zip, zlib, JSON or syntax errors from
+    numpy's header parser, or numpy's advice to load pickled data). A file that cannot be
+    opened raises as ``open`` does (FileNotFoundError, PermissionError)."""
+    with open(path, "rb") as f:
+        try:
+            z = np.load(f, allow_pickle=False)
+            if not isinstance(z, np.lib.npyio.NpzFile):
+                raise _damaged(path, "a single array, not an .npz archive")
+            with z:
+                raw = {name: z[name] for name in z.files}
+        except ValueError as e:
+            if str(e).startswith(f"{path}: "):
+                raise
+            if "pickle" in str(e):
+                raise _damaged(path, "not an .npz archive of plain arrays (pickled or "
+                                     "unknown data, left unread)") from None
+            raise _damaged(path, str(e)) from None
+        except Exception as e:  # noqa: BLE001 - any failure to parse is a damaged file
+            # zipfile.BadZipFile, zlib.error, EOFError, SyntaxError or tokenize's errors
+            # from a damaged array header, MemoryError for a shape larger than memory...
+            raise _damaged(path, f"{type(e).__name__}: {e}") from None
+    missing = [name for name in _REQUIRED if name not in raw]
+    if missing:
+        raise _damaged(path, f"missing {', '.join(missing)}")
+    return raw
+
+
+def _json_entry(path, raw: dict, name: str):
+    try:
+        return json.loads(str(raw[name]))
+    except ValueError as e:
+        raise _damaged(path, f"{name}: not JSON ({e})") from None
 
 
 class FilledKernelWarning(UserWarning):

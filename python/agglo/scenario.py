@@ -12,6 +12,7 @@ import os
 from typing import Any, Mapping, Optional
 
 from . import _agglo
+from ._args import MAX_SEED, whole
 
 
 class Section:
@@ -126,7 +127,7 @@ class Scenario:
 
     def with_seed(self, seed: int) -> "Scenario":
         """A copy with another seed (as ``agglo run --seed``)."""
-        return Scenario(self._inner.with_seed(int(seed)))
+        return Scenario(self._inner.with_seed(whole("seed", seed, 0, MAX_SEED)))
 
     def with_bodies(
         self,
@@ -160,7 +161,7 @@ class Scenario:
                 )
             return a
 
-        ids = None if id is None else np.ascontiguousarray(id, dtype=np.uint64)
+        ids = None if id is None else _ids(id)
         return Scenario(
             self._inner.with_bodies(
                 f64(position, 2),
@@ -230,3 +231,32 @@ class Scenario:
 
     def __reduce__(self):
         return (Scenario.from_json, (self.to_json(),))
+
+
+def _ids(id):
+    """``id`` as a contiguous uint64 array, or a ScenarioError naming the first value that
+    is not a whole number in [0, 2**64 - 1] (as the CSV path refuses it): numpy's cast
+    truncated 0.5 to 0 and wrapped -1 to 2**64 - 1."""
+    import numpy as np
+
+    a = np.asarray(id)
+    if a.dtype.kind == "u":
+        return np.ascontiguousarray(a, dtype=np.uint64)
+    if a.dtype.kind == "i" and (a.size == 0 or a.min() >= 0):
+        return np.ascontiguousarray(a, dtype=np.uint64)
+    if a.dtype.kind == "f" and np.all(np.isfinite(a)) and np.all(a == np.floor(a)) \
+            and (a.size == 0 or (a.min() >= 0 and a.max() <= 2**53)):
+        # Whole floats up to 2**53 are exact; beyond, they stand for several integers.
+        return np.ascontiguousarray(a, dtype=np.uint64)
+    flat = a.reshape(-1) if a.dtype.kind in "iuf" else np.asarray(a, dtype=object).reshape(-1)
+    for i, value in enumerate(flat):
+        value = value.item() if hasattr(value, "item") else value
+        if isinstance(value, float) and value.is_integer() and 0 <= value <= 2**53:
+            continue
+        try:
+            whole(f"with_bodies: id.{i}", value, 0, MAX_SEED)
+        except _agglo.ScenarioError:
+            raise _agglo.ScenarioError(
+                f"with_bodies: id.{i}: allowed a whole number 0 ≤ id ≤ 2^64 − 1 "
+                f"(exactly, so a float at most 2^53) (got {value!r})") from None
+    return np.ascontiguousarray(np.array([int(v) for v in flat], dtype=np.uint64))

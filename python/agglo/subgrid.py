@@ -31,9 +31,15 @@ import numpy as np
 
 from . import _agglo
 from ._agglo import CellState
+from ._args import MAX_THREADS, whole
 from .scenario import Scenario
 
 __all__ = ["Coupling", "CellOutput", "CellState", "MicroSimulation", "micro_simulation"]
+
+
+#: Ranges of the Rust side's unsigned integers (cell ids and steps: u64; sizes: u32).
+_MAX_U64 = 2**64 - 1
+_MAX_U32 = 2**32 - 1
 
 
 class CellOutput:
@@ -112,10 +118,15 @@ class Coupling:
                  persist: bool = False):
         if not isinstance(scenario, Scenario):
             scenario = Scenario.load(scenario)
+        # Whole numbers checked by name (1.5 was taken as 1, 2**40 raised a bare
+        # OverflowError); their upper ranges are the Rust side's u32.
+        if bodies is not None:
+            bodies = whole("bodies", bodies, 0, _MAX_U32)
         self._c = _agglo.Coupling(scenario._inner, [float(e) for e in edges], bodies,
-                                  int(replicas), bool(keep_bodies), bool(kernel),
-                                  float(target_se), int(min_bodies), int(max_bodies),
-                                  bool(persist))
+                                  whole("replicas", replicas, 0, _MAX_U32), bool(keep_bodies),
+                                  bool(kernel), float(target_se),
+                                  whole("min_bodies", min_bodies, 0, _MAX_U32),
+                                  whole("max_bodies", max_bodies, 0, _MAX_U32), bool(persist))
 
     @property
     def classes(self) -> int:
@@ -144,10 +155,10 @@ class Coupling:
         ``field.drag.relaxation`` form (``{"stokes": {"viscosity": 1.8e-5}}``), ``None`` for
         none. ``states``: each cell's state from its last step (or ``None``). Raises
         ``ScenarioError`` naming every cell and field out of range."""
-        cells = [int(c) for c in cells]
+        cells = [whole("cells", c, 0, _MAX_U64) for c in cells]
         n, k = len(cells), self.classes
         outs, new_states = self._c.advance_cells(
-            int(macro_step), cells,
+            whole("macro_step", macro_step, 0, _MAX_U64), cells,
             _rows(number_density, n, (k,), "number_density"),
             _rows(mass, n, (k,), "mass"),
             _rows(velocity, n, (k, 3), "velocity"),
@@ -158,7 +169,7 @@ class Coupling:
             _rows(gas_temperature, n, (), "gas_temperature"),
             None if drag is None else json.dumps(drag),
             None if states is None else list(states),
-            int(threads),
+            whole("threads", threads, 0, MAX_THREADS),
         )
         return [CellOutput(d) for d in outs], new_states
 

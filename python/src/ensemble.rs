@@ -46,6 +46,10 @@ pub fn ensemble<'py>(
         base.output = base.output.without_files();
         // Checked once here, so that a scene that cannot be built fails before any run.
         base.pipeline().map_err(scenario_error)?;
+        // The scenes the threads hold at once must fit together, not only one by one.
+        agglo::memory::MemoryEstimate::of_runs(&base, seeds.len(), threads)
+            .check()
+            .map_err(|e| scenario_error(format!("ensemble: {e}")))?;
         let dir = std::env::temp_dir().join(format!(
             "agglo-py-ensemble-{}-{:x}",
             std::process::id(),

@@ -26,8 +26,22 @@ fn interrupt_flag() -> Arc<AtomicBool> {
     agglo::run::signals::StopRequest::install().flag()
 }
 
+/// The base scenes the threads run at once must fit together (the problem's own check
+/// covers one).
+fn check_runs_at_once(problem: &InverseProblem, threads: usize) -> anyhow::Result<()> {
+    if let Some(warning) =
+        agglo::memory::MemoryEstimate::of_runs(&problem.base, usize::MAX, threads)
+            .check()
+            .map_err(|e| anyhow::anyhow!("--threads {threads}: {e}"))?
+    {
+        eprintln!("{warning}");
+    }
+    Ok(())
+}
+
 pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result<()> {
     let problem = load(&args.problem)?;
+    check_runs_at_once(&problem, args.threads)?;
     let ga = &problem.spec.ga;
     let cancel = interrupt_flag();
     let live = super::live::start_inverse(&args.live, &problem, &args.out, &cancel)?;
@@ -179,6 +193,7 @@ pub fn optimize(args: OptimizeArgs, cluster: Option<&Cluster>) -> anyhow::Result
 
 pub fn scan(args: ScanArgs, cluster: Option<&Cluster>) -> anyhow::Result<()> {
     let problem = load(&args.problem)?;
+    check_runs_at_once(&problem, args.threads)?;
     anyhow::ensure!(
         args.points >= 2,
         "--points: allowed ≥ 2 (got {})",

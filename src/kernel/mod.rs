@@ -124,6 +124,15 @@ pub fn measure(
     sampling.check().map_err(anyhow::Error::msg)?;
     let count = u32::try_from(seeds.len()).unwrap_or(u32::MAX);
     check_seeds(count, grid).map_err(anyhow::Error::msg)?;
+    // The scenes the workers hold at once (unchecked, 3e8 bodies aborted where `agglo
+    // run` refuses them).
+    if let Some(warning) =
+        crate::memory::MemoryEstimate::of_runs(scenario, seeds.len(), workers.threads)
+            .check()
+            .map_err(anyhow::Error::msg)?
+    {
+        progress(&warning);
+    }
     let work = |seed: &u64| -> Result<Accumulator, String> {
         measure_one(scenario, grid, window, sampling, *seed).map_err(|e| format!("{e:#}"))
     };

@@ -554,6 +554,11 @@ pub fn run_accuracy(
     mut progress: impl FnMut(&str),
 ) -> anyhow::Result<AccuracyStudy> {
     let reference_s = reference_scenario(base);
+    // Each seed of the noise band is a task holding its scene as JSON: refused before
+    // any run when they cannot fit (`--seeds 4294967295`).
+    let task_bytes = MeasureTask::of(&reference_s, 1).scenario_json.len() as f64 + 1024.0;
+    crate::memory::fits("seeds", options.seeds, options.seeds as f64 * task_bytes)
+        .map_err(anyhow::Error::msg)?;
     let reference = measure_all(
         workers,
         vec![MeasureTask::of(&reference_s, options.repeats)],

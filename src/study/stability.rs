@@ -509,6 +509,14 @@ impl RunMiss {
     }
 }
 
+/// Refuse `seeds` seeds of [`run_misses`] over `settings` settings whose counts cannot
+/// fit: a seed, its reference count and one count per setting and seed are kept
+/// (`--seeds 4294967295` would list 34 GB of seeds alone).
+fn misses_fit(seeds: usize, settings: usize) -> Result<(), String> {
+    let kept = 16 + 8 * settings;
+    crate::memory::fits("seeds", seeds, seeds as f64 * kept as f64)
+}
+
 /// Run the elastic scene under fixed Δt and step factor c over `seeds` seeds.
 pub fn run_misses(
     scenario: &Scenario,
@@ -543,6 +551,7 @@ pub fn run_misses(
         let _ = sim.run();
         Ok(sim.counters().impacts)
     };
+    misses_fit(seeds, dts.len() + factors.len()).map_err(anyhow::Error::msg)?;
     let seeds: Vec<u64> = (0..seeds.max(1) as u64)
         .map(|k| base.seed.wrapping_add(k))
         .collect();
@@ -626,6 +635,10 @@ pub fn run_stability(
     options: &StabilityOptions,
     mut progress: impl FnMut(&str),
 ) -> anyhow::Result<StabilityStudy> {
+    // Refused before the maps, not after them.
+    if options.runs {
+        misses_fit(options.seeds, 8 + 6).map_err(anyhow::Error::msg)?;
+    }
     let pair_cold = pair_map(&PairSetup::cold(), &options.pair_grid);
     progress("pair map (no softening) done");
     let pair_soft = pair_map(&PairSetup::softening(), &options.pair_grid);

@@ -29,8 +29,9 @@ use std::f64::consts::PI;
 
 use crate::cloud::{Cloud, PlacedBody};
 use crate::inverse::ensemble::{derive_seed, splitmix64};
-use crate::scenario::Scenario;
+use crate::scenario::{MAX_SPEED, MAX_TEMPERATURE, Scenario};
 use agglo_engine::field::Drag;
+use agglo_engine::readable::exact;
 
 use super::config::{BoxSize, Coupling};
 use super::error::SubgridError;
@@ -151,6 +152,14 @@ pub fn radius_of(m: f64, rho: f64) -> f64 {
     (3.0 * m / (4.0 * PI * rho)).cbrt()
 }
 
+/// Standard deviations of a class's velocity draw that must stay under the speed limit.
+const DRAWN_SIGMAS: f64 = 10.0;
+
+/// |v| without overflow (hypot: 1e200 on one axis is 1e200, not ∞).
+fn norm(v: [f64; 3]) -> f64 {
+    v[0].hypot(v[1]).hypot(v[2])
+}
+
 /// Check a cell's input against the coupling; the error names the cell and the field.
 pub fn check_input(c: &Coupling, cell: u64, input: &CellInput) -> Result<(), SubgridError> {
     let bad = |field: String, value: String, allowed: &str| {
@@ -177,7 +186,7 @@ pub fn check_input(c: &Coupling, cell: u64, input: &CellInput) -> Result<(), Sub
         if !(n.is_finite() && n >= 0.0) {
             return bad(
                 f("number_density"),
-                format!("{n}"),
+                exact(n),
                 "must be ≥ 0 and finite [1/m³]",
             );
         }
@@ -204,28 +213,45 @@ pub fn check_input(c: &Coupling, cell: u64, input: &CellInput) -> Result<(), Sub
             }
         }
         for (i, v) in class.velocity.iter().enumerate() {
-            if !(v.is_finite() && v.abs() <= crate::scene::MAX_SPEED) {
+            if !(v.is_finite() && v.abs() <= MAX_SPEED) {
                 return bad(
                     format!("classes[{k}].velocity[{i}]"),
-                    format!("{v}"),
-                    &format!("must be finite, |v| ≤ {:e} m/s", crate::scene::MAX_SPEED),
+                    exact(*v),
+                    &format!("must be finite, |v| ≤ {MAX_SPEED:e} m/s"),
                 );
             }
         }
-        let t = class.temperature;
-        if !(t.is_finite() && t > 0.0) {
+        // The speed, not only each component: 1e5 m/s on every axis passed here, then
+        // failed as the lifted box's `cloud.bodies.59.velocity` (issue 39).
+        let speed = norm(class.velocity);
+        if speed > MAX_SPEED {
             return bad(
-                f("temperature"),
-                format!("{t}"),
-                "must be > 0 and finite [K]",
+                f("velocity"),
+                format!("|v| = {speed:e} m/s"),
+                &format!("the speed must be ≤ {MAX_SPEED:e} m/s"),
             );
         }
+        let t = class.temperature;
+        if !(t.is_finite() && t > 0.0 && t <= MAX_TEMPERATURE) {
+            return bad(
+                f("temperature"),
+                exact(t),
+                &format!("must be > 0 and ≤ {MAX_TEMPERATURE:e} K (the radiation law takes θ⁴)"),
+            );
+        }
+        // Bodies are drawn about v̄ with σ = √T_g per axis: 10 σ keeps every drawn speed
+        // under the limit (a draw beyond 10 σ in 3D has probability ~1e-21).
         let g = class.granular_temperature;
-        if !(g.is_finite() && g >= 0.0) {
+        let sigma_limit = (MAX_SPEED - speed) / DRAWN_SIGMAS;
+        if !(g.is_finite() && g >= 0.0 && g.sqrt() <= sigma_limit) {
             return bad(
                 f("granular_temperature"),
-                format!("{g}"),
-                "must be ≥ 0 and finite [m²/s²]",
+                exact(g),
+                &format!(
+                    "must be ≥ 0 with {DRAWN_SIGMAS} √T_g ≤ {MAX_SPEED:e} m/s − |v| \
+                     (here T_g ≤ {:e} m²/s²), so that drawn speeds stay under the limit",
+                    sigma_limit * sigma_limit
+                ),
             );
         }
     }
@@ -238,19 +264,29 @@ pub fn check_input(c: &Coupling, cell: u64, input: &CellInput) -> Result<(), Sub
     }
     let gas = &input.gas;
     for (i, u) in gas.velocity.iter().enumerate() {
-        if !(u.is_finite() && u.abs() <= 1e5) {
+        if !(u.is_finite() && u.abs() <= MAX_SPEED) {
             return bad(
                 format!("gas.velocity[{i}]"),
-                format!("{u}"),
+                exact(*u),
                 "must be finite, |u| ≤ 1e5 m/s",
             );
         }
     }
-    if !(gas.temperature.is_finite() && gas.temperature > 0.0) {
+    if norm(gas.velocity) > MAX_SPEED {
+        return bad(
+            "gas.velocity".into(),
+            format!("|u| = {:e} m/s", norm(gas.velocity)),
+            "the speed must be ≤ 1e5 m/s",
+        );
+    }
+    // The gas temperature is the box's θ0: 1e300 passed here, then failed as the box's
+    // `material.theta0`.
+    if !(gas.temperature.is_finite() && gas.temperature > 0.0 && gas.temperature <= MAX_TEMPERATURE)
+    {
         return bad(
             "gas.temperature".into(),
-            format!("{}", gas.temperature),
-            "must be > 0 and finite [K]",
+            exact(gas.temperature),
+            &format!("must be > 0 and ≤ {MAX_TEMPERATURE:e} K (the radiation law takes θ⁴)"),
         );
     }
     let field = gas_field(c, input);

@@ -29,7 +29,7 @@ fn corpus_bytes(name: &str) -> Vec<u8> {
 /// One edit of a file: flip a bit, replace a byte, delete a span, insert bytes, or cut
 /// the file short (positions taken modulo the length).
 #[derive(Debug, Clone)]
-enum Edit {
+pub(crate) enum Edit {
     Flip { at: usize, bit: u8 },
     Replace { at: usize, byte: u8 },
     Delete { at: usize, len: usize },
@@ -37,7 +37,7 @@ enum Edit {
     Truncate { at: usize },
 }
 
-fn edit() -> impl Strategy<Value = Edit> {
+pub(crate) fn edit() -> impl Strategy<Value = Edit> {
     prop_oneof![
         4 => (any::<usize>(), 0u8..8).prop_map(|(at, bit)| Edit::Flip { at, bit }),
         2 => (any::<usize>(), any::<u8>()).prop_map(|(at, byte)| Edit::Replace { at, byte }),
@@ -48,7 +48,7 @@ fn edit() -> impl Strategy<Value = Edit> {
     ]
 }
 
-fn apply(bytes: &[u8], edits: &[Edit]) -> Vec<u8> {
+pub(crate) fn apply(bytes: &[u8], edits: &[Edit]) -> Vec<u8> {
     let mut b = bytes.to_vec();
     for e in edits {
         let n = b.len().max(1);
@@ -78,7 +78,7 @@ fn apply(bytes: &[u8], edits: &[Edit]) -> Vec<u8> {
     b
 }
 
-fn edits() -> impl Strategy<Value = Vec<Edit>> {
+pub(crate) fn edits() -> impl Strategy<Value = Vec<Edit>> {
     proptest::collection::vec(edit(), 1..4)
 }
 
@@ -91,7 +91,7 @@ fn write_temp(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
 /// Extreme numbers a field may be given: signed zeros, the ends of f64, the smallest
 /// normal and subnormal, the largest integers, values that overflow when cubed or
 /// squared, and ordinary ones.
-fn extreme() -> impl Strategy<Value = Value> {
+pub(crate) fn extreme() -> impl Strategy<Value = Value> {
     prop_oneof![
         Just(json!(0.0)),
         Just(json!(-0.0)),
@@ -114,7 +114,7 @@ fn extreme() -> impl Strategy<Value = Value> {
 }
 
 /// Every numeric leaf of `v`, as a dotted path.
-fn numeric_paths(v: &Value, prefix: &str, out: &mut Vec<String>) {
+pub(crate) fn numeric_paths(v: &Value, prefix: &str, out: &mut Vec<String>) {
     match v {
         Value::Object(m) => {
             for (k, x) in m {
@@ -136,7 +136,7 @@ fn numeric_paths(v: &Value, prefix: &str, out: &mut Vec<String>) {
     }
 }
 
-fn set(v: &mut Value, path: &str, x: Value) {
+pub(crate) fn set(v: &mut Value, path: &str, x: Value) {
     let mut slot = v;
     for key in path.split('.') {
         slot = match slot {
@@ -150,7 +150,7 @@ fn set(v: &mut Value, path: &str, x: Value) {
 /// Run `work` on its own thread and fail (naming `case`) if it has not finished within
 /// 20 s — a hang fails the test instead of holding up the suite (the thread is left
 /// behind; the test binary ends with the failure).
-fn within_time(case: String, work: impl FnOnce() + Send + 'static) {
+pub(crate) fn within_time(case: String, work: impl FnOnce() + Send + 'static) {
     let (done, wait) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
         work();
@@ -185,7 +185,7 @@ fn build_and_step(s: &Scenario) {
 /// CI runs the same inputs every time; `PROPTEST_RNG_SEED=N PROPTEST_CASES=K` explores
 /// others (how the cases behind the named regression tests in `damaged_input.rs` were
 /// found).
-fn fuzz_config() -> ProptestConfig {
+pub(crate) fn fuzz_config() -> ProptestConfig {
     let mut config = ProptestConfig::default();
     if std::env::var_os("PROPTEST_CASES").is_none() {
         config.cases = 256;

@@ -340,6 +340,18 @@ pub fn run_readings(
     } else {
         combinations(&all, &options.combine)
     };
+    // Before listing them: a scene per run (readings × seeds), and the scenes the
+    // workers run at once (`--seeds 4294967295` would list 34 GB of seeds alone).
+    let runs = readings.len().saturating_mul(options.seeds);
+    let per_run = crate::memory::scenario_bytes(base) + std::mem::size_of::<RunStats>() as f64;
+    crate::memory::fits("runs (readings × --seeds)", runs, runs as f64 * per_run)
+        .map_err(anyhow::Error::msg)?;
+    if let Some(warning) = crate::memory::MemoryEstimate::of_runs(base, runs, workers.threads)
+        .check()
+        .map_err(anyhow::Error::msg)?
+    {
+        log(&warning);
+    }
     let seeds: Vec<u64> = (0..options.seeds as u64)
         .map(|k| base.seed.wrapping_add(k))
         .collect();

@@ -1,0 +1,69 @@
+//! For the C fuzz harness (c_fuzz.rs): the crate's directory, libagglo_c.so built by
+//! the cargo that runs it (as c_program.rs builds it for the example), and a C
+//! program compiled against the header and the library with warnings as errors.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+pub fn crate_dir() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The directory holding libagglo_c.so. `cargo test` builds this crate's rlib for the
+/// tests but not its cdylib (only `cargo build` does), so the test builds the library
+/// itself with the cargo that runs it, in the same profile and target directory: on a
+/// fresh clone the README's `cargo test` must pass without a `cargo build` before it.
+pub fn library_dir() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    // target/<profile>/deps/c_program-… → target/<profile>
+    let dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
+    let profile = dir.file_name().unwrap().to_string_lossy().into_owned();
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut build = Command::new(&cargo);
+    build
+        .args(["build", "--quiet", "-p", "agglo-capi", "--lib"])
+        .current_dir(crate_dir());
+    // The test binary sits in target/<profile>; `debug` is cargo's name for the dev profile.
+    if profile != "debug" {
+        build.args(["--profile", &profile]);
+    }
+    let target_dir = dir.parent().unwrap();
+    build.env("CARGO_TARGET_DIR", target_dir);
+    let status = build
+        .status()
+        .unwrap_or_else(|e| panic!("running {cargo}: {e}"));
+    assert!(status.success(), "{cargo} build -p agglo-capi --lib failed");
+    assert!(
+        dir.join("libagglo_c.so").exists(),
+        "no libagglo_c.so in {} after building it",
+        dir.display()
+    );
+    dir
+}
+
+/// Compile the C program `source` (under capi/) against the header and the library,
+/// with warnings as errors, into `dir`; the executable's path.
+pub fn compile_c(source: &str, dir: &Path) -> PathBuf {
+    let exe = dir.join(Path::new(source).file_stem().unwrap());
+    let lib = library_dir();
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let compiled = Command::new(&cc)
+        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"])
+        .arg("-I")
+        .arg(crate_dir().join("include"))
+        .arg(crate_dir().join(source))
+        .arg("-L")
+        .arg(&lib)
+        .arg("-lagglo_c")
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .args(["-lm", "-o"])
+        .arg(&exe)
+        .output()
+        .unwrap_or_else(|e| panic!("running {cc}: {e}"));
+    assert!(
+        compiled.status.success(),
+        "{cc} failed:\n{}",
+        String::from_utf8_lossy(&compiled.stderr)
+    );
+    exe
+}
