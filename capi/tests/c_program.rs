@@ -3,71 +3,17 @@
 //! warnings as errors, links to the shared library and passes its own checks; and the
 //! calls refuse NULLs and bad lengths by name, from Rust.
 
-use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use agglo_c::AggloStatus;
 
-fn crate_dir() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The directory holding libagglo_c.so. `cargo test` builds this crate's rlib for the
-/// tests but not its cdylib (only `cargo build` does), so the test builds the library
-/// itself with the cargo that runs it, in the same profile and target directory: on a
-/// fresh clone the README's `cargo test` must pass without a `cargo build` before it.
-fn library_dir() -> PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    // target/<profile>/deps/c_program-… → target/<profile>
-    let dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
-    let profile = dir.file_name().unwrap().to_string_lossy().into_owned();
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let mut build = Command::new(&cargo);
-    build
-        .args(["build", "--quiet", "-p", "agglo-capi", "--lib"])
-        .current_dir(crate_dir());
-    // The test binary sits in target/<profile>; `debug` is cargo's name for the dev profile.
-    if profile != "debug" {
-        build.args(["--profile", &profile]);
-    }
-    let target_dir = dir.parent().unwrap();
-    build.env("CARGO_TARGET_DIR", target_dir);
-    let status = build
-        .status()
-        .unwrap_or_else(|e| panic!("running {cargo}: {e}"));
-    assert!(status.success(), "{cargo} build -p agglo-capi --lib failed");
-    assert!(
-        dir.join("libagglo_c.so").exists(),
-        "no libagglo_c.so in {} after building it",
-        dir.display()
-    );
-    dir
-}
+mod common;
+use common::{compile_c, crate_dir};
 
 #[test]
 fn the_c_example_compiles_runs_and_its_checks_hold() {
     let build = tempfile::tempdir().unwrap();
-    let exe = build.path().join("advance_cells");
-    let lib = library_dir();
-    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    let compiled = Command::new(&cc)
-        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"])
-        .arg("-I")
-        .arg(crate_dir().join("include"))
-        .arg(crate_dir().join("examples/advance_cells.c"))
-        .arg("-L")
-        .arg(&lib)
-        .arg("-lagglo_c")
-        .arg(format!("-Wl,-rpath,{}", lib.display()))
-        .args(["-lm", "-o"])
-        .arg(&exe)
-        .output()
-        .unwrap_or_else(|e| panic!("running {cc}: {e}"));
-    assert!(
-        compiled.status.success(),
-        "{cc} failed:\n{}",
-        String::from_utf8_lossy(&compiled.stderr)
-    );
+    let exe = compile_c("examples/advance_cells.c", build.path());
     let scenario = crate_dir().join("../scenarios/ballistic_aggregation.json");
     let run = Command::new(&exe).arg(&scenario).output().unwrap();
     let stdout = String::from_utf8_lossy(&run.stdout);

@@ -1,4 +1,4 @@
-//! For the C fuzz harness (c_fuzz.rs): the crate's directory, libagglo_c.so built by
+//! For the C tests (c_program.rs, c_fuzz.rs): the crate's directory, libagglo_c.so built by
 //! the cargo that runs it (as c_program.rs builds it for the example), and a C
 //! program compiled against the header and the library with warnings as errors.
 
@@ -9,14 +9,22 @@ pub fn crate_dir() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// The directory holding libagglo_c.so. `cargo test` builds this crate's rlib for the
-/// tests but not its cdylib (only `cargo build` does), so the test builds the library
-/// itself with the cargo that runs it, in the same profile and target directory: on a
-/// fresh clone the README's `cargo test` must pass without a `cargo build` before it.
+/// The directory holding libagglo_c.so. `cargo test` builds every crate type of this
+/// crate's library, the cdylib included, into target/<profile>/deps/ beside the test
+/// binary, but only `cargo build` copies it up to target/<profile>/: the test takes the
+/// one in deps/, built by the same `cargo test` that runs it. Only when that is missing
+/// (the test binary run by hand) does it build the library itself with cargo, in the same
+/// profile and target directory. (It used to build it always: `cargo build -p agglo-capi`
+/// resolves features apart from the workspace's `cargo test` and recompiled dependencies,
+/// about 40 s of the test run on a fresh clone.)
 pub fn library_dir() -> PathBuf {
     let exe = std::env::current_exe().unwrap();
+    let deps = exe.parent().unwrap().to_path_buf();
+    if deps.join("libagglo_c.so").exists() {
+        return deps;
+    }
     // target/<profile>/deps/c_program-… → target/<profile>
-    let dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
+    let dir = deps.parent().unwrap().to_path_buf();
     let profile = dir.file_name().unwrap().to_string_lossy().into_owned();
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut build = Command::new(&cargo);
