@@ -438,7 +438,7 @@ def compare(task: Task, fresh_docs: pathlib.Path, agglo: pathlib.Path) -> list[s
         out += readme_quotes_the_report(ROOT / "docs" / task.files[0])
         out += pipeline_md_quotes_validate(agglo)
         out += readme_quotes_the_pandas_slope(agglo)
-    if task.name == "peers":
+    if task.name in ("peers", "peers-slow"):
         out += docs_quote_the_peer_counts(ROOT / "docs" / task.files[0])
     if task.name.startswith("readings-"):
         readings_dir = ROOT / "docs" / "study" / "readings"
