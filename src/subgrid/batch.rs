@@ -17,6 +17,7 @@ use super::error::SubgridError;
 use super::exchange::{CellInput, CellOutput};
 use super::lift::{box_volume, check_box, check_input, is_trace};
 use super::memory::check_memory;
+use super::profile::{Part, timed};
 use super::restrict::combine;
 
 /// What a cell's step starts from, once its input and state are checked.
@@ -137,15 +138,17 @@ fn finish(
     runs: Vec<ReplicaRun>,
 ) -> Result<(CellOutput, CellState), SubgridError> {
     let measured: Vec<_> = runs.iter().map(|r| r.measured.clone()).collect();
-    let mut output = combine(
-        c,
-        cell,
-        macro_step,
-        input,
-        prepared.volume,
-        &prepared.ignored,
-        &measured,
-    );
+    let mut output = timed(Part::Restrict, || {
+        combine(
+            c,
+            cell,
+            macro_step,
+            input,
+            prepared.volume,
+            &prepared.ignored,
+            &measured,
+        )
+    });
     if c.kernel {
         let mut pooled: Option<Accumulator> = None;
         for run in &runs {

@@ -3,6 +3,7 @@
 //! ([`run_replica`]).
 
 use std::ops::ControlFlow;
+use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
@@ -15,6 +16,7 @@ use super::config::Coupling;
 use super::error::SubgridError;
 use super::exchange::CellInput;
 use super::lift::{gas_field, lift, replica_seed};
+use super::profile::{self, Part, timed};
 use super::restrict::{ClassSums, Replica};
 use crate::resources::{Counters, EnergyLedger};
 
@@ -270,36 +272,39 @@ pub fn run_replica(
     let (scenario, snapshot) = match kept {
         None => {
             let seed = replica_seed(c.base.seed, cell, macro_step, replica);
-            let s = lift(c, cell, input, volume, seed).map_err(|e| match e {
-                SubgridError::Run { reason, .. } => fail(reason),
-                other => other,
-            })?;
+            let s =
+                timed(Part::Lift, || lift(c, cell, input, volume, seed)).map_err(|e| match e {
+                    SubgridError::Run { reason, .. } => fail(reason),
+                    other => other,
+                })?;
             if s.cloud.bodies.is_empty() {
                 return empty_box(c, cell, replica, volume);
             }
             (s, None)
         }
         Some(kept) => {
-            let snapshot =
-                RestartSnapshot::decode(&kept.snapshot).map_err(|e| SubgridError::State {
+            let snapshot = timed(Part::Restore, || RestartSnapshot::decode(&kept.snapshot))
+                .map_err(|e| SubgridError::State {
                     cell,
                     reason: format!("replica {replica}: {e}"),
                 })?;
             if let Some(e) = expected.filter(|e| e.classes != input.classes) {
                 // Transport changed the cell: the box adjusted to it (adjust.rs).
                 let seed = replica_seed(c.base.seed, cell, macro_step, replica);
-                let s = adjusted_box(c, cell, input, e, volume, seed, &snapshot.bodies).map_err(
-                    |e| match e {
-                        SubgridError::Run { reason, .. } => fail(reason),
-                        other => other,
-                    },
-                )?;
+                let s = timed(Part::Adjust, || {
+                    adjusted_box(c, cell, input, e, volume, seed, &snapshot.bodies)
+                })
+                .map_err(|e| match e {
+                    SubgridError::Run { reason, .. } => fail(reason),
+                    other => other,
+                })?;
                 if s.cloud.bodies.is_empty() {
                     return empty_box(c, cell, replica, volume);
                 }
                 return run_scene(c, cell, replica, s, None);
             }
-            let mut s = Scenario::from_json(&kept.scenario).map_err(|e| SubgridError::State {
+            let read = timed(Part::Restore, || Scenario::from_json(&kept.scenario));
+            let mut s = read.map_err(|e| SubgridError::State {
                 cell,
                 reason: format!("replica {replica}: the kept scene does not read: {e}"),
             })?;
@@ -326,11 +331,14 @@ fn run_scene(
         replica,
         reason,
     };
+    let built = Instant::now();
     let mut sim = crate::kernel::simulation(&scenario).map_err(|e| fail(e.to_string()))?;
     if let Some(snapshot) = &snapshot {
         sim.resume(snapshot).map_err(|e| fail(e.to_string()))?;
     }
-    let start = ClassSums::of(c, &sim.bodies());
+    profile::add(Part::Build, built);
+    let start = timed(Part::Restrict, || ClassSums::of(c, &sim.bodies()));
+    let running = Instant::now();
     let (ledger0, counters0) = (sim.ledger(), sim.counters());
     let kernel = if c.kernel {
         let mut acc = Accumulator::new(c.kernel_grid(), Window::default(), Sampling::default());
@@ -353,7 +361,8 @@ fn run_scene(
         sim.run().map_err(|e| fail(e.to_string()))?;
         None
     };
-    let end = ClassSums::of(c, &sim.bodies());
+    profile::add(Part::Run, running);
+    let end = timed(Part::Restrict, || ClassSums::of(c, &sim.bodies()));
     let measured = Replica::new(
         start,
         end,
@@ -363,12 +372,14 @@ fn run_scene(
         &sim.counters(),
     );
     let kept = (c.keep_bodies || c.persist).then(|| {
-        // The run is complete: every body is at the end time (Simulation::run_until).
-        let snapshot = agglo_engine::restart::capture(sim.world_mut());
-        KeptBox {
-            scenario: scenario.to_json(),
-            snapshot: snapshot.encode(),
-        }
+        timed(Part::Keep, || {
+            // The run is complete: every body is at the end time (Simulation::run_until).
+            let snapshot = agglo_engine::restart::capture(sim.world_mut());
+            KeptBox {
+                scenario: scenario.to_json(),
+                snapshot: snapshot.encode(),
+            }
+        })
     });
     Ok(ReplicaRun {
         measured,

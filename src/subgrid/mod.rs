@@ -54,6 +54,7 @@ mod error;
 mod exchange;
 mod lift;
 mod memory;
+pub mod profile;
 mod restrict;
 
 pub use adjust::apply_rates;
