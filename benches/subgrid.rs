@@ -12,8 +12,9 @@
 //! over 1 ms within 1.1× the boxes' own run time — is measured by [`macro_steps`], run
 //! when `AGGLO_MACRO_CELLS` gives the cell count (`AGGLO_MACRO_CELLS=256 cargo bench
 //! --bench subgrid -- macro`; it takes about a minute per step at 256 cells on one
-//! core). It times each part of the step ([`agglo::subgrid::profile`]) on one thread,
-//! so the parts add up to the wall time but for the coupling's own bookkeeping.
+//! core). It times each part of the step ([`agglo::subgrid::profile`]) in CPU time on
+//! one thread, so the parts add up to the process's CPU time but for the coupling's own
+//! bookkeeping, whatever else the machine runs.
 
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -55,6 +56,7 @@ fn p04() -> (Coupling, CellInput) {
             velocity: v_mean,
             temperature: theta0,
             granular_temperature: tg,
+            granular_anisotropy: ISOTROPIC,
         })
         .collect();
     let input = CellInput {
@@ -168,9 +170,9 @@ fn stirred(held: &CellInput, fresh: &CellInput) -> CellInput {
     out
 }
 
-/// One macro step of `inputs` (cell i at index i) on one thread: the wall time, the
-/// time in each part, what is left for the coupling (preparing, handing out and
-/// putting together the tasks, `apply_rates`), and the outputs and states.
+/// One macro step of `inputs` (cell i at index i) on one thread: the process's CPU
+/// time, the CPU time in each part, what is left for the coupling (preparing, handing
+/// out and putting together the tasks, `apply_rates`), and the outputs and states.
 fn timed_step(
     c: &Coupling,
     step: u64,
@@ -185,9 +187,9 @@ fn timed_step(
         .map(|(i, (input, state))| (i as u64, input, state))
         .collect();
     profile::reset();
-    let start = Instant::now();
+    let start = profile::process_cpu_seconds();
     let results = advance_cells(c, step, &cells, &Workers::local(1));
-    let wall = start.elapsed().as_secs_f64();
+    let wall = profile::process_cpu_seconds() - start;
     let parts = profile::seconds();
     let results = results.into_iter().map(|r| r.expect("cell")).collect();
     (results, wall, parts)
@@ -202,8 +204,8 @@ fn report(label: &str, cells: usize, c: &Coupling, wall: f64, parts: &[(Part, f6
     let coupling = wall - accounted;
     let boxes = cells * c.replicas as usize;
     eprintln!(
-        "{label}: {cells} cells × {} replicas in {wall:.3} s ({:.3} ms per box); wall / run = \
-         {:.4}",
+        "{label}: {cells} cells × {} replicas in {wall:.3} s of CPU ({:.3} ms per box); \
+         total / run = {:.4}",
         c.replicas,
         1e3 * wall / boxes as f64,
         wall / run

@@ -383,6 +383,7 @@ fn subgrid_batch() -> (
                 velocity: [0.1 * (cell / 16) as f64, 0.0, 0.0],
                 temperature: 300.0,
                 granular_temperature: 1.0,
+                granular_anisotropy: agglo::subgrid::ISOTROPIC,
             };
             let input = CellInput {
                 classes: (0..3).map(class).collect(),

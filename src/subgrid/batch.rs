@@ -53,7 +53,13 @@ fn prepare(
     let ignored = match kept {
         Some(_) if !c.persist => vec![false; input.classes.len()],
         _ => {
-            check_box(c, cell, input, volume)?;
+            match kept.and_then(|s| s.expected.as_ref()) {
+                // A kept box is only checked for what transport inserts into it: the
+                // bodies it made itself (an aggregate grown beyond a quarter of the
+                // side) are the closed cell's and stay.
+                Some(expected) => check_box(c, cell, &inserted(input, expected), volume)?,
+                None => check_box(c, cell, input, volume)?,
+            };
             input
                 .classes
                 .iter()
@@ -85,6 +91,20 @@ fn prepare(
         time: state.map_or(0.0, |s| s.time),
         steps: state.map_or(0, |s| s.macro_steps),
     })
+}
+
+/// What an adjusted box receives: `input`'s classes that transport grew since
+/// `expected` (the rest at density 0), the bodies lifting places among the kept ones.
+fn inserted(input: &CellInput, expected: &CellInput) -> CellInput {
+    let mut grown = input.clone();
+    for (a, e) in grown.classes.iter_mut().zip(&expected.classes) {
+        if *a == *e || a.number_density <= e.number_density {
+            a.number_density = 0.0;
+        } else {
+            a.number_density -= e.number_density;
+        }
+    }
+    grown
 }
 
 /// The range of V·Δt [m³ s] a step may have: every rate is a box sum times 1/(V·Δt)

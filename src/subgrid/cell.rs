@@ -3,7 +3,6 @@
 //! ([`run_replica`]).
 
 use std::ops::ControlFlow;
-use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
@@ -21,12 +20,15 @@ use super::restrict::{ClassSums, Replica};
 use crate::resources::{Counters, EnergyLedger};
 
 /// Layout version of [`CellState::to_bytes`]; bumped when it changes (3: the CRC-32
-/// after the postcard bytes, issue 39).
-pub const STATE_VERSION: u32 = 3;
+/// after the postcard bytes, issue 39; 4: each remembered class's granular
+/// anisotropy, issue 37).
+pub const STATE_VERSION: u32 = 4;
 
 /// A kept box between macro steps: the scene it was lifted as and the restart
 /// snapshot at the end of the last step (engine/restart.rs), from which the next step
-/// continues bit for bit.
+/// continues bit for bit. With `persist`, a box whose Poisson draw held no body is kept
+/// as empty (both fields empty) and lifted afresh at the next step: it remembers
+/// nothing.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct KeptBox {
     /// The lifted scenario, as JSON (its sections skip defaults, which a compact
@@ -34,6 +36,20 @@ pub struct KeptBox {
     pub scenario: String,
     /// [`RestartSnapshot::encode`]'s bytes.
     pub snapshot: Vec<u8>,
+}
+
+impl KeptBox {
+    /// The kept form of a box that holds no body (persist only).
+    fn empty() -> Self {
+        Self {
+            scenario: String::new(),
+            snapshot: Vec::new(),
+        }
+    }
+    /// True for a box kept with no body: lifted afresh at the next step.
+    pub fn is_empty(&self) -> bool {
+        self.snapshot.is_empty()
+    }
 }
 
 /// What a cell carries from one macro step to the next. Opaque to the flow solver:
@@ -159,6 +175,13 @@ impl CellState {
                         "expected.classes[{k}].mass = {m:e} (must be > 0 and finite [kg])"
                     ));
                 }
+                let a = class.granular_anisotropy;
+                if !a.iter().all(|x| x.is_finite() && *x >= 0.0) {
+                    return Err(format!(
+                        "expected.classes[{k}].granular_anisotropy = {a:?} (each must be ≥ 0 \
+                         and finite)"
+                    ));
+                }
             }
         }
         Ok(())
@@ -226,14 +249,15 @@ pub struct ReplicaRun {
 
 /// A box whose Poisson draw held no body (probability e^−N): it saw nothing, and
 /// counts as such (every sum and event 0), since dropping it would bias every rate up.
-/// A closed cell cannot keep an empty box: refused, asking for a larger N.
+/// A closed cell cannot keep an empty box (it would stay empty): refused, asking for a
+/// larger N. A persistent cell keeps it as empty, to be lifted afresh next step.
 fn empty_box(
     c: &Coupling,
     cell: u64,
     replica: u32,
     volume: f64,
 ) -> Result<ReplicaRun, SubgridError> {
-    if c.keep_bodies || c.persist {
+    if c.keep_bodies {
         return Err(SubgridError::input(
             cell,
             "bodies",
@@ -246,7 +270,7 @@ fn empty_box(
     Ok(ReplicaRun {
         measured: Replica::new(nothing.clone(), nothing, &zero.0, &zero.0, &zero.1, &zero.1),
         kernel: None,
-        kept: None,
+        kept: c.persist.then(KeptBox::empty),
     })
 }
 
@@ -269,6 +293,8 @@ pub fn run_replica(
         replica,
         reason,
     };
+    // A persistent box that held nothing has nothing to continue: lifted afresh.
+    let kept = kept.filter(|k| !k.is_empty());
     let (scenario, snapshot) = match kept {
         None => {
             let seed = replica_seed(c.base.seed, cell, macro_step, replica);
@@ -331,14 +357,14 @@ fn run_scene(
         replica,
         reason,
     };
-    let built = Instant::now();
+    let built = profile::start();
     let mut sim = crate::kernel::simulation(&scenario).map_err(|e| fail(e.to_string()))?;
     if let Some(snapshot) = &snapshot {
         sim.resume(snapshot).map_err(|e| fail(e.to_string()))?;
     }
     profile::add(Part::Build, built);
     let start = timed(Part::Restrict, || ClassSums::of(c, &sim.bodies()));
-    let running = Instant::now();
+    let running = profile::start();
     let (ledger0, counters0) = (sim.ledger(), sim.counters());
     let kernel = if c.kernel {
         let mut acc = Accumulator::new(c.kernel_grid(), Window::default(), Sampling::default());

@@ -20,6 +20,10 @@
 //!    largest bodies first, over a cell grid (O(N) for the volume fractions allowed).
 //! 5. **Velocities.** u_k plus independent Maxwellian fluctuations of variance T_k per
 //!    component; temperatures θ_k.
+//! 6. **Structure.** At a volume fraction ≥ [`EQUILIBRATE_FROM`], [`SWEEPS`] sweeps of
+//!    hard-core Metropolis moves relax the packing to the equilibrium hard-sphere
+//!    fluid's (structure.rs): random sequential addition's excess of pairs near contact
+//!    would otherwise set the first impacts.
 //!
 //! Every draw comes from one generator seeded by [`replica_seed`], so a box depends only
 //! on (base seed, cell, macro step, replica) and the input: never on which thread or
@@ -35,6 +39,7 @@ use agglo_engine::field::Drag;
 use super::config::{BoxSize, Coupling};
 use super::error::SubgridError;
 use super::exchange::CellInput;
+use super::structure::{EQUILIBRATE_FROM, SWEEPS, equilibrate};
 
 /// The word that tells subgrid seeds apart from the other derived seeds ("subg").
 const SUBGRID_TAG: u64 = 0x7375_6267;
@@ -226,6 +231,23 @@ pub fn check_input(c: &Coupling, cell: u64, input: &CellInput) -> Result<(), Sub
                 f("granular_temperature"),
                 format!("{g}"),
                 "must be ≥ 0 and finite [m²/s²]",
+            );
+        }
+        let a = class.granular_anisotropy;
+        for (i, x) in a.iter().enumerate() {
+            if !(x.is_finite() && *x >= 0.0 && *x <= 1e300) {
+                return bad(
+                    format!("classes[{k}].granular_anisotropy[{i}]"),
+                    format!("{x}"),
+                    "must be ≥ 0 and finite, at most 1e300 ([1, 1, 1]: isotropic)",
+                );
+            }
+        }
+        if a.iter().sum::<f64>() <= 0.0 {
+            return bad(
+                f("granular_anisotropy"),
+                format!("{a:?}"),
+                "the three weights must not all be 0 ([1, 1, 1]: isotropic)",
             );
         }
     }
@@ -436,6 +458,20 @@ pub fn lift(
     volume: f64,
     seed: u64,
 ) -> Result<Scenario, SubgridError> {
+    lift_with_sweeps(c, cell, input, volume, seed, None)
+}
+
+/// [`lift`] with `sweeps` Metropolis sweeps after placement (structure.rs), or, with
+/// `None`, the default: [`SWEEPS`] at a volume fraction ≥ [`EQUILIBRATE_FROM`], none
+/// below. For measuring the structure against the sweeps.
+pub fn lift_with_sweeps(
+    c: &Coupling,
+    cell: u64,
+    input: &CellInput,
+    volume: f64,
+    seed: u64,
+    sweeps: Option<u32>,
+) -> Result<Scenario, SubgridError> {
     let rho = c.base.material.rho;
     let m0 = c.primary().1;
     let side = volume.cbrt();
@@ -492,11 +528,18 @@ pub fn lift(
         }
         // Independent Maxwellian draws about the class mean (module doc: no sample mean
         // subtracted, so each body and each pair has the cell's velocity statistics).
-        let sd = class.granular_temperature.sqrt();
+        let sd = class.granular_temperature_axes().map(f64::sqrt);
         for body in &mut bodies[first..] {
-            body.velocity = Some([0, 1, 2].map(|x| class.velocity[x] + sd * rng.normal()));
+            body.velocity = Some([0, 1, 2].map(|x| class.velocity[x] + sd[x] * rng.normal()));
         }
     }
+    let sweeps = sweeps.unwrap_or(if fraction >= EQUILIBRATE_FROM {
+        SWEEPS
+    } else {
+        0
+    });
+    let size = |b: &PlacedBody| radius_of(b.mass.unwrap_or(m0), rho);
+    equilibrate(&mut bodies, side, size, sweeps, &mut rng);
     // Not validated here: building its simulation validates it (once, 12 % of a lift
     // at P04's conditions).
     Ok(box_scene(c, input, side, seed, bodies))
