@@ -20,7 +20,8 @@
 //!    largest bodies first, over a cell grid (O(N) for the volume fractions allowed).
 //! 5. **Velocities.** u_k plus independent Maxwellian fluctuations of variance T_k per
 //!    component; temperatures θ_k.
-//! 6. **Structure.** At a volume fraction ≥ [`EQUILIBRATE_FROM`], [`SWEEPS`] sweeps of
+//! 6. **Structure.** At a volume fraction ≥ [`EQUILIBRATE_FROM`], over a step short
+//!    against the collision time ([`SWEEPS_BELOW_IMPACTS`]), [`SWEEPS`] sweeps of
 //!    hard-core Metropolis moves relax the packing to the equilibrium hard-sphere
 //!    fluid's (structure.rs): random sequential addition's excess of pairs near contact
 //!    would otherwise set the first impacts.
@@ -461,9 +462,30 @@ pub fn lift(
     lift_with_sweeps(c, cell, input, volume, seed, None)
 }
 
+/// True when a box lifted for `input` at volume fraction `fraction` gets the Metropolis
+/// sweeps (structure.rs): a fraction ≥ [`EQUILIBRATE_FROM`] and a step short enough that
+/// its first impacts weigh — fewer than [`SWEEPS_BELOW_IMPACTS`] impacts per body
+/// expected over Δt (free-molecular estimate). Over a longer step the box's own impacts
+/// bring it to the fluid's structure within its first impacts per body, while the sweeps
+/// would cost most of a short run: at P04's cell (Δt = 1 ms, thousands of impacts per
+/// body) 20 sweeps took 0.8 of the boxes' run time (docs/coupling.md).
+fn needs_sweeps(c: &Coupling, input: &CellInput, fraction: f64) -> bool {
+    if fraction < EQUILIBRATE_FROM {
+        return false;
+    }
+    let n: f64 = input.classes.iter().map(|k| k.number_density).sum();
+    let per_body = 2.0 * expected_impact_density(c, input) / n;
+    per_body < SWEEPS_BELOW_IMPACTS
+}
+
+/// Lifting sweeps a dense box only when fewer impacts than this are expected per body
+/// over Δt ([`needs_sweeps`]).
+pub const SWEEPS_BELOW_IMPACTS: f64 = 10.0;
+
 /// [`lift`] with `sweeps` Metropolis sweeps after placement (structure.rs), or, with
-/// `None`, the default: [`SWEEPS`] at a volume fraction ≥ [`EQUILIBRATE_FROM`], none
-/// below. For measuring the structure against the sweeps.
+/// `None`, the default: [`SWEEPS`] at a volume fraction ≥ [`EQUILIBRATE_FROM`] over a
+/// step with fewer than [`SWEEPS_BELOW_IMPACTS`] impacts expected per body, none
+/// otherwise. For measuring the structure against the sweeps.
 pub fn lift_with_sweeps(
     c: &Coupling,
     cell: u64,
@@ -533,7 +555,7 @@ pub fn lift_with_sweeps(
             body.velocity = Some([0, 1, 2].map(|x| class.velocity[x] + sd[x] * rng.normal()));
         }
     }
-    let sweeps = sweeps.unwrap_or(if fraction >= EQUILIBRATE_FROM {
+    let sweeps = sweeps.unwrap_or(if needs_sweeps(c, input, fraction) {
         SWEEPS
     } else {
         0

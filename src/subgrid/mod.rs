@@ -69,9 +69,9 @@ pub use exchange::{
     CellInput, CellOutput, ClassInput, ClassOutput, Column, GasState, ISOTROPIC, Stat,
 };
 pub use lift::{
-    MAX_DIAMETER_PER_SIDE, MAX_VOLUME_FRACTION, TRACE_BODIES, box_volume, check_box, check_input,
-    draw_counts, expected_impact_density, is_trace, lift, lift_with_sweeps, radius_of,
-    replica_seed,
+    MAX_DIAMETER_PER_SIDE, MAX_VOLUME_FRACTION, SWEEPS_BELOW_IMPACTS, TRACE_BODIES, box_volume,
+    check_box, check_input, draw_counts, expected_impact_density, is_trace, lift, lift_with_sweeps,
+    radius_of, replica_seed,
 };
 pub use memory::{KEPT_BYTES_PER_BODY, LIFT_BYTES_PER_BODY, cell_bytes, check_memory};
 pub use restrict::{ClassSums, Replica};

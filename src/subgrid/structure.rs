@@ -16,8 +16,9 @@ use crate::cloud::PlacedBody;
 
 use super::lift::Stream;
 
-/// Sweeps given to a box lifted at volume fraction ≥ [`EQUILIBRATE_FROM`]
-/// (docs/coupling.md gives the contact value against sweeps).
+/// Sweeps given to a box lifted at volume fraction ≥ [`EQUILIBRATE_FROM`] over a short
+/// step (lift.rs, `needs_sweeps`; docs/coupling.md gives the contact value against
+/// sweeps).
 pub const SWEEPS: u32 = 20;
 
 /// Below this volume fraction a lifted box keeps its random sequential packing: its

@@ -292,7 +292,7 @@ fn persistent_chain_at_a_hundredth_of_tau0() {
         let (f, o, dd) = (Stat::of(&fine[i]), Stat::of(&once[i]), Stat::of(&diff[i]));
         eprintln!(
             "{name}: 200 steps of 0.01 τ0 {:.4} ± {:.4}, one step {:.4} ± {:.4}, paired \
-             difference {:+.5} ± {:.5}; direct {:.4} ± {:.4} (z {:+.2}); {cells} cells, \
+             difference {:+.3e} ± {:.3e}; direct {:.4} ± {:.4} (z {:+.2}); {cells} cells, \
              {:.0} s",
             f.mean,
             f.se,
@@ -309,9 +309,11 @@ fn persistent_chain_at_a_hundredth_of_tau0() {
             z(f, d).abs() <= 3.0,
             "{name}: the chain is off the direct boxes"
         );
-        // A zero difference (the same trajectories) has no SE: it passes as it is.
+        // The boxes' trajectories are the same for any number of steps (the closed
+        // cell): what differs is the solver's sum of 200 rates against one, at
+        // rounding level (measured: |difference| below 1e-5 printed as 0.00000).
         assert!(
-            dd.mean.abs() <= 3.0 * dd.se || dd.mean == 0.0,
+            dd.mean.abs() <= 3.0 * dd.se + 1e-9,
             "{name}: the chain drifted from one step"
         );
     }
