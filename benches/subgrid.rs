@@ -7,9 +7,20 @@
 //! for K replicas is s/√K.
 //!
 //! Run: `cargo bench --bench subgrid`. Figures are in docs/coupling.md.
+//!
+//! Issue 37's cost goal — a macro step of 256 cells × 8 replicas of 10³-body P04 boxes
+//! over 1 ms within 1.1× the boxes' own run time — is measured by [`macro_steps`], run
+//! when `AGGLO_MACRO_CELLS` gives the cell count (`AGGLO_MACRO_CELLS=256 cargo bench
+//! --bench subgrid -- macro`; it takes about a minute per step at 256 cells on one
+//! core). It times each part of the step ([`agglo::subgrid::profile`]) in CPU time on
+//! one thread, so the parts add up to the process's CPU time but for the coupling's own
+//! bookkeeping, whatever else the machine runs.
 
 use std::path::Path;
 use std::time::{Duration, Instant};
+
+use agglo::farm::Workers;
+use agglo::subgrid::profile::{self, Part};
 
 use agglo::prelude::*;
 use agglo::subgrid::*;
@@ -45,6 +56,7 @@ fn p04() -> (Coupling, CellInput) {
             velocity: v_mean,
             temperature: theta0,
             granular_temperature: tg,
+            granular_anisotropy: ISOTROPIC,
         })
         .collect();
     let input = CellInput {
@@ -90,6 +102,9 @@ fn spread() {
 }
 
 fn cells(c: &mut Criterion) {
+    if std::env::var_os("AGGLO_MACRO_CELLS").is_some() {
+        return; // the macro step alone (module doc)
+    }
     spread();
     let (coupling, input) = p04();
     let volume = box_volume(&coupling, 0, &input).unwrap();
@@ -136,5 +151,140 @@ fn cells(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, cells);
+/// 10 % of the held state `held` replaced by the fresh input `fresh`, class by class (a
+/// stirred cell: n ← 0.9 n + 0.1 n_fresh; the mean velocity and temperatures of a class
+/// that gains fresh bodies mixed by number).
+fn stirred(held: &CellInput, fresh: &CellInput) -> CellInput {
+    let mut out = held.clone();
+    for (o, f) in out.classes.iter_mut().zip(&fresh.classes) {
+        let (nh, nf) = (0.9 * o.number_density, 0.1 * f.number_density);
+        let n = nh + nf;
+        if nf > 0.0 && n > 0.0 {
+            let (wh, wf) = (nh / n, nf / n);
+            o.velocity = [0, 1, 2].map(|x| wh * o.velocity[x] + wf * f.velocity[x]);
+            o.granular_temperature = wh * o.granular_temperature + wf * f.granular_temperature;
+            o.temperature = wh * o.temperature + wf * f.temperature;
+        }
+        o.number_density = n;
+    }
+    out
+}
+
+/// One macro step of `inputs` (cell i at index i) on one thread: the process's CPU
+/// time, the CPU time in each part, what is left for the coupling (preparing, handing
+/// out and putting together the tasks, `apply_rates`), and the outputs and states.
+fn timed_step(
+    c: &Coupling,
+    step: u64,
+    inputs: &[CellInput],
+    states: Vec<Option<CellState>>,
+) -> (Vec<(CellOutput, CellState)>, f64, [(Part, f64); 7]) {
+    let cells: Vec<_> = inputs
+        .iter()
+        .cloned()
+        .zip(states)
+        .enumerate()
+        .map(|(i, (input, state))| (i as u64, input, state))
+        .collect();
+    profile::reset();
+    let start = profile::process_cpu_seconds();
+    let results = advance_cells(c, step, &cells, &Workers::local(1));
+    let wall = profile::process_cpu_seconds() - start;
+    let parts = profile::seconds();
+    let results = results.into_iter().map(|r| r.expect("cell")).collect();
+    (results, wall, parts)
+}
+
+fn report(label: &str, cells: usize, c: &Coupling, wall: f64, parts: &[(Part, f64); 7]) {
+    let run = parts
+        .iter()
+        .find(|(p, _)| *p == Part::Run)
+        .map_or(f64::NAN, |x| x.1);
+    let accounted: f64 = parts.iter().map(|x| x.1).sum();
+    let coupling = wall - accounted;
+    let boxes = cells * c.replicas as usize;
+    eprintln!(
+        "{label}: {cells} cells × {} replicas in {wall:.3} s of CPU ({:.3} ms per box); \
+         total / run = {:.4}",
+        c.replicas,
+        1e3 * wall / boxes as f64,
+        wall / run
+    );
+    let mut line = String::new();
+    for (p, t) in parts {
+        line += &format!(" {} {:.3} s ({:.2} %),", p.name(), t, 100.0 * t / run);
+    }
+    line += &format!(
+        " coupling {coupling:.3} s ({:.2} %)",
+        100.0 * coupling / run
+    );
+    eprintln!("  of the run time:{line}");
+}
+
+/// Issue 37's cost goal (module doc): `AGGLO_MACRO_CELLS` cells of the P04 input, K =
+/// 8, N = 1000, Δt = 1 ms, persistent boxes, `AGGLO_MACRO_REPEATS` times (3): the first
+/// step (lifted), a second step whose input is exactly what `apply_rates` left (the
+/// boxes resume their snapshots: the closed cell), and a second step with 10 % of each
+/// cell stirred in from the fresh input (the boxes adjusted). Then the same first and
+/// second steps re-lifting (persist off).
+fn macro_steps() {
+    let Some(cells) = std::env::var("AGGLO_MACRO_CELLS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+    else {
+        return;
+    };
+    let repeats = std::env::var("AGGLO_MACRO_REPEATS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .unwrap_or(3);
+    let (mut c, input) = p04();
+    c.replicas = 8;
+    for repeat in 0..repeats {
+        for persist in [true, false] {
+            c.persist = persist;
+            let mode = if persist { "persist" } else { "re-lift" };
+            let inputs = vec![input.clone(); cells];
+            let (first, wall, parts) =
+                timed_step(&c, 2 * repeat as u64, &inputs, vec![None; cells]);
+            report(
+                &format!("[{repeat}] {mode}, first step"),
+                cells,
+                &c,
+                wall,
+                &parts,
+            );
+            let held: Vec<CellInput> = first
+                .iter()
+                .zip(&inputs)
+                .map(|((out, _), i)| apply_rates(&c, i, out))
+                .collect();
+            let states: Vec<Option<CellState>> =
+                first.iter().map(|(_, s)| Some(s.clone())).collect();
+            let (_, wall, parts) = timed_step(&c, 2 * repeat as u64 + 1, &held, states.clone());
+            report(
+                &format!("[{repeat}] {mode}, second step, no transport"),
+                cells,
+                &c,
+                wall,
+                &parts,
+            );
+            let stirred: Vec<CellInput> = held.iter().map(|h| stirred(h, &input)).collect();
+            let (_, wall, parts) = timed_step(&c, 2 * repeat as u64 + 1, &stirred, states);
+            report(
+                &format!("[{repeat}] {mode}, second step, 10 % stirred in"),
+                cells,
+                &c,
+                wall,
+                &parts,
+            );
+        }
+    }
+}
+
+fn macro_group(_: &mut Criterion) {
+    macro_steps();
+}
+
+criterion_group!(benches, macro_group, cells);
 criterion_main!(benches);

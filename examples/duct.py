@@ -44,7 +44,10 @@ def run(cells: int, steps: int, length: float = 0.02, speed: float = 2.0, phi_in
     """Run the duct; return the final class densities per cell and the ledgers."""
     base = agglo.Scenario.load(ROOT / "scenarios/ballistic_aggregation.json")
     b0, m0 = base.primary_radius, base.primary_mass  # the primary grain's radius and mass
-    coupling = Coupling(base, EDGES_IN_PRIMARIES * m0, bodies=bodies, replicas=replicas)
+    # Re-lifted every step (no states are passed back), as the figure in
+    # docs/coupling.md was drawn.
+    coupling = Coupling(base, EDGES_IN_PRIMARIES * m0, bodies=bodies, replicas=replicas,
+                        persist=False)
     k = coupling.classes
     dx = length / cells
     dt = 0.8 * dx / speed  # CFL 0.8

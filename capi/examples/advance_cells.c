@@ -53,6 +53,7 @@ static AggloCellInput input_of(const Cell *c, double dt) {
   in.velocity = c->v;
   in.temperature = c->theta;
   in.granular_temperature = c->tg;
+  in.granular_anisotropy = NULL; /* isotropic */
   in.gas.velocity[0] = in.gas.velocity[1] = in.gas.velocity[2] = 0.0;
   in.gas.temperature = 300.0;
   in.gas.drag = AGGLO_DRAG_NONE;

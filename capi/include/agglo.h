@@ -82,8 +82,12 @@ typedef struct AggloCellInput {
   const double *velocity;
   // Temperature of each class's bodies [K], > 0.
   const double *temperature;
-  // Granular temperature of each class [m²/s²], ≥ 0.
+  // Granular temperature of each class [m²/s²], ≥ 0: the mean over the axes of a
+  // velocity component's variance.
   const double *granular_temperature;
+  // How each class's granular temperature splits over x, y, z, 3 per class (a_i ≥ 0,
+  // not all 0): component i's variance is T·3a_i/(a_x + a_y + a_z). NULL: isotropic.
+  const double *granular_anisotropy;
   struct AggloGas gas;
   // The macro time step Δt [s], > 0.
   double dt;
@@ -102,7 +106,8 @@ typedef struct AggloCouplingOptions {
   // Replica boxes K per cell and macro step (independent seeds), ≥ 1.
   uint32_t replicas;
   // Keep each cell's bodies between macro steps (a closed cell): later steps
-  // continue the state's boxes and use only the input's gas and Δt.
+  // continue the state's boxes and use only the input's gas and Δt. Excludes
+  // `persist` (set it to false).
   bool keep_bodies;
   // Pool the kernel counts and exposure of the boxes (`agglo kernel`'s sums) into
   // each output: the figures `kernel_exposure` [s/m³], `kernel_bonds`,
@@ -112,7 +117,9 @@ typedef struct AggloCouplingOptions {
   // Keep each cell's boxes between macro steps and adjust them to each new input by
   // what transport changed since the last step's rates were applied (bodies added or
   // removed, velocities shifted and rescaled, per class); with no transport the
-  // closed cell. Excludes `keep_bodies`.
+  // closed cell. Excludes `keep_bodies`. The default (re-lifted chains drift as Δt
+  // shrinks, persistent ones do not: docs/coupling.md); false with `keep_bodies`
+  // false lifts every step afresh.
   bool persist;
 } AggloCouplingOptions;
 
@@ -169,8 +176,9 @@ enum AggloStatus agglo_cells_advance(const struct AggloCoupling *coupling,
                                      enum AggloStatus *statuses,
                                      uintptr_t threads);
 
-// The defaults: N = 1000 bodies per box, K = 4 replicas, a new lift every step (not
-// kept, not persisting), no kernel (target_se 0.05 within [100, 100 000] bodies when `bodies` is set to 0).
+// The defaults: N = 1000 bodies per box, K = 4 replicas, persistent boxes (`persist`,
+// not `keep_bodies`), no kernel (target_se 0.05 within [100, 100 000] bodies when
+// `bodies` is set to 0).
 struct AggloCouplingOptions agglo_coupling_options_default(void);
 
 // Make a coupling from a scenario given as JSON text (the format of `scenarios/*.json`;

@@ -48,8 +48,12 @@ pub struct AggloCellInput {
     pub velocity: *const f64,
     /// Temperature of each class's bodies [K], > 0.
     pub temperature: *const f64,
-    /// Granular temperature of each class [m²/s²], ≥ 0.
+    /// Granular temperature of each class [m²/s²], ≥ 0: the mean over the axes of a
+    /// velocity component's variance.
     pub granular_temperature: *const f64,
+    /// How each class's granular temperature splits over x, y, z, 3 per class (a_i ≥ 0,
+    /// not all 0): component i's variance is T·3a_i/(a_x + a_y + a_z). NULL: isotropic.
+    pub granular_anisotropy: *const f64,
     pub gas: AggloGas,
     /// The macro time step Δt [s], > 0.
     pub dt: f64,
@@ -295,5 +299,19 @@ unsafe fn read_input(
             }
         },
     };
-    Ok(CellInput::from_columns(cell, n, m, v, t, g, gas, input.dt)?)
+    // SAFETY: the caller's contract (NULL or 3 per class).
+    let a = if input.granular_anisotropy.is_null() {
+        None
+    } else {
+        Some(unsafe {
+            slice(
+                input.granular_anisotropy,
+                3 * k,
+                &field("granular_anisotropy"),
+            )
+        }?)
+    };
+    Ok(CellInput::from_columns(
+        cell, n, m, v, t, g, a, gas, input.dt,
+    )?)
 }

@@ -27,7 +27,8 @@ pub struct AggloCouplingOptions {
     /// Replica boxes K per cell and macro step (independent seeds), ≥ 1.
     pub replicas: u32,
     /// Keep each cell's bodies between macro steps (a closed cell): later steps
-    /// continue the state's boxes and use only the input's gas and Δt.
+    /// continue the state's boxes and use only the input's gas and Δt. Excludes
+    /// `persist` (set it to false).
     pub keep_bodies: bool,
     /// Pool the kernel counts and exposure of the boxes (`agglo kernel`'s sums) into
     /// each output: the figures `kernel_exposure` [s/m³], `kernel_bonds`,
@@ -37,12 +38,15 @@ pub struct AggloCouplingOptions {
     /// Keep each cell's boxes between macro steps and adjust them to each new input by
     /// what transport changed since the last step's rates were applied (bodies added or
     /// removed, velocities shifted and rescaled, per class); with no transport the
-    /// closed cell. Excludes `keep_bodies`.
+    /// closed cell. Excludes `keep_bodies`. The default (re-lifted chains drift as Δt
+    /// shrinks, persistent ones do not: docs/coupling.md); false with `keep_bodies`
+    /// false lifts every step afresh.
     pub persist: bool,
 }
 
-/// The defaults: N = 1000 bodies per box, K = 4 replicas, a new lift every step (not
-/// kept, not persisting), no kernel (target_se 0.05 within [100, 100 000] bodies when `bodies` is set to 0).
+/// The defaults: N = 1000 bodies per box, K = 4 replicas, persistent boxes (`persist`,
+/// not `keep_bodies`), no kernel (target_se 0.05 within [100, 100 000] bodies when
+/// `bodies` is set to 0).
 #[unsafe(no_mangle)]
 pub extern "C" fn agglo_coupling_options_default() -> AggloCouplingOptions {
     AggloCouplingOptions {
@@ -53,7 +57,7 @@ pub extern "C" fn agglo_coupling_options_default() -> AggloCouplingOptions {
         replicas: 4,
         keep_bodies: false,
         kernel: false,
-        persist: false,
+        persist: true,
     }
 }
 

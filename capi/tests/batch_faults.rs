@@ -35,6 +35,8 @@ fn coupling(keep_bodies: bool) -> (*mut AggloCoupling, f64) {
     options.bodies = 40;
     options.replicas = 1;
     options.keep_bodies = keep_bodies;
+    // Re-lifted or closed cells, as these tests were written (persist is the default).
+    options.persist = false;
     let mut c = null_mut();
     // SAFETY: valid pointers throughout.
     unsafe {
@@ -77,6 +79,7 @@ impl Arrays {
             velocity: self.v.as_ptr(),
             temperature: self.theta.as_ptr(),
             granular_temperature: self.tg.as_ptr(),
+            granular_anisotropy: std::ptr::null(),
             gas: AggloGas {
                 velocity: [0.0; 3],
                 temperature: 300.0,

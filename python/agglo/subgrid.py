@@ -50,6 +50,8 @@ class CellOutput:
     (classes, 3) [N/m³], ``number_density`` [1/m³], ``mass_density`` [kg/m³],
     ``velocity`` (classes, 3) [m/s], ``temperature`` [K], ``class_granular_temperature``
     [m²/s²] (unbiased; NaN where no replica held two bodies of the class),
+    ``class_granular_temperature_axes`` (classes, 3) [m²/s²] (the diagonal T_xx, T_yy,
+    T_zz of each class's granular temperature tensor, unbiased, over the same replicas),
     ``present`` and ``granular_replicas`` [replicas holding one, two bodies of the class],
     ``fluctuation_energy_rate`` and ``thermal_energy_rate`` [W/m³] (transport
     ½ρ·3T and Cρθ with them and energy closes), ``ignored`` (1 for a trace class that was
@@ -109,13 +111,15 @@ class Coupling:
     ``replicas`` boxes per cell, whether cells keep their bodies between macro steps
     (a closed cell, ``keep_bodies``) or keep them and adjust them to what transport
     changed (``persist``: bodies added or removed, velocities shifted and rescaled per
-    class; with no transport the closed cell), and whether to pool the kernel sums.
+    class; with no transport the closed cell; the default unless ``keep_bodies``, since
+    re-lifted chains drift as Δt shrinks — ``persist=False`` lifts every step afresh),
+    and whether to pool the kernel sums.
     """
 
     def __init__(self, scenario, edges: Sequence[float], *, bodies: Optional[int] = 1000,
                  replicas: int = 4, keep_bodies: bool = False, kernel: bool = False,
                  target_se: float = 0.05, min_bodies: int = 100, max_bodies: int = 100_000,
-                 persist: bool = False):
+                 persist: Optional[bool] = None):
         if not isinstance(scenario, Scenario):
             scenario = Scenario.load(scenario)
         # Whole numbers checked by name (1.5 was taken as 1, 2**40 raised a bare
@@ -126,12 +130,19 @@ class Coupling:
                                   whole("replicas", replicas, 0, _MAX_U32), bool(keep_bodies),
                                   bool(kernel), float(target_se),
                                   whole("min_bodies", min_bodies, 0, _MAX_U32),
-                                  whole("max_bodies", max_bodies, 0, _MAX_U32), bool(persist))
+                                  whole("max_bodies", max_bodies, 0, _MAX_U32),
+                                  None if persist is None else bool(persist))
 
     @property
     def classes(self) -> int:
         """The number of size classes."""
         return self._c.classes
+
+    @property
+    def persist(self) -> bool:
+        """Whether cells keep their boxes and adjust them to transport (the default
+        unless ``keep_bodies``)."""
+        return self._c.persist
 
     @property
     def edges(self) -> np.ndarray:
@@ -147,11 +158,15 @@ class Coupling:
                       velocity, temperature, granular_temperature, dt, gas_velocity=(0.0, 0.0, 0.0),
                       gas_temperature=300.0, drag: Optional[Dict[str, Any]] = None,
                       states: Optional[Sequence[Optional[CellState]]] = None,
-                      threads: int = 0) -> Tuple[List[CellOutput], List[CellState]]:
+                      threads: int = 0,
+                      granular_anisotropy=None) -> Tuple[List[CellOutput], List[CellState]]:
         """Advance a macro step's ``cells`` (their ids) on ``threads`` Rust threads (0: one
         per core), the GIL released. Per-class arrays have shape (cells, classes),
         ``velocity`` (cells, classes, 3); ``dt`` [s], ``gas_temperature`` [K] and
-        ``gas_velocity`` [m/s] are per cell or one for all. ``drag`` is the scenario's
+        ``gas_velocity`` [m/s] are per cell or one for all. ``granular_anisotropy``
+        (cells, classes, 3), optional, splits each class's granular temperature T over the
+        axes: component i's variance is T·3a_i/(a_x + a_y + a_z) (``None``: isotropic,
+        [1, 1, 1]). ``drag`` is the scenario's
         ``field.drag.relaxation`` form (``{"stokes": {"viscosity": 1.8e-5}}``), ``None`` for
         none. ``states``: each cell's state from its last step (or ``None``). Raises
         ``ScenarioError`` naming every cell and field out of range."""
@@ -170,6 +185,8 @@ class Coupling:
             None if drag is None else json.dumps(drag),
             None if states is None else list(states),
             whole("threads", threads, 0, MAX_THREADS),
+            None if granular_anisotropy is None
+            else _rows(granular_anisotropy, n, (k, 3), "granular_anisotropy"),
         )
         return [CellOutput(d) for d in outs], new_states
 

@@ -82,6 +82,8 @@ struct Batch<'a> {
     velocity: &'a [f64],
     temperature: &'a [f64],
     granular_temperature: &'a [f64],
+    /// (n, k, 3), or None: isotropic.
+    granular_anisotropy: Option<&'a [f64]>,
     dt: &'a [f64],
     gas_velocity: &'a [f64],
     gas_temperature: &'a [f64],
@@ -157,9 +159,10 @@ impl Coupling {
     /// A coupling of `scenario` on the class `edges` [kg]: N = `bodies` per box (or,
     /// with `bodies=None`, bodies enough for a relative standard error `target_se` of
     /// the cell's impact rate, within [`min_bodies`, `max_bodies`]), K = `replicas`;
-    /// `keep_bodies` (a closed cell) or `persist` (kept boxes adjusted to transport).
+    /// `keep_bodies` (a closed cell) or `persist` (kept boxes adjusted to transport;
+    /// the default unless `keep_bodies`).
     #[new]
-    #[pyo3(signature = (scenario, edges, bodies=Some(1000), replicas=4, keep_bodies=false, kernel=false, target_se=0.05, min_bodies=100, max_bodies=100_000, persist=false))]
+    #[pyo3(signature = (scenario, edges, bodies=Some(1000), replicas=4, keep_bodies=false, kernel=false, target_se=0.05, min_bodies=100, max_bodies=100_000, persist=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         scenario: &Scenario,
@@ -171,7 +174,7 @@ impl Coupling {
         target_se: f64,
         min_bodies: u32,
         max_bodies: u32,
-        persist: bool,
+        persist: Option<bool>,
     ) -> PyResult<Self> {
         guard(|| {
             let mut c = subgrid::Coupling::new(scenario.inner.clone(), edges)
@@ -187,7 +190,7 @@ impl Coupling {
             c.replicas = replicas;
             c.keep_bodies = keep_bodies;
             c.kernel = kernel;
-            c.persist = persist;
+            c.persist = persist.unwrap_or(!keep_bodies);
             c.check().map_err(|e| subgrid_error(&e))?;
             Ok(Self { inner: c })
         })
@@ -197,6 +200,12 @@ impl Coupling {
     #[getter]
     fn classes(&self) -> usize {
         self.inner.classes()
+    }
+
+    /// Whether cells keep their boxes and adjust them to transport.
+    #[getter]
+    fn persist(&self) -> bool {
+        self.inner.persist
     }
 
     /// The class edges [kg].
@@ -219,10 +228,11 @@ impl Coupling {
 
     /// Advance a macro step's cells (arrays with one row per cell: `number_density`,
     /// `mass`, `temperature`, `granular_temperature` of shape (n, k), `velocity` (n, k,
-    /// 3), `dt` and `gas_temperature` (n,), `gas_velocity` (n, 3)) on `threads` threads
-    /// (0: one per core). Returns the outputs (dicts) and the new states; raises, naming
-    /// every failed cell, when any cell fails.
-    #[pyo3(signature = (macro_step, cells, number_density, mass, velocity, temperature, granular_temperature, dt, gas_velocity, gas_temperature, drag=None, states=None, threads=0))]
+    /// 3), `dt` and `gas_temperature` (n,), `gas_velocity` (n, 3), optionally
+    /// `granular_anisotropy` (n, k, 3)) on `threads` threads (0: one per core). Returns
+    /// the outputs (dicts) and the new states; raises, naming every failed cell, when any
+    /// cell fails.
+    #[pyo3(signature = (macro_step, cells, number_density, mass, velocity, temperature, granular_temperature, dt, gas_velocity, gas_temperature, drag=None, states=None, threads=0, granular_anisotropy=None))]
     #[allow(clippy::too_many_arguments)]
     fn advance_cells<'py>(
         &self,
@@ -240,6 +250,7 @@ impl Coupling {
         drag: Option<&str>,
         states: Option<Vec<Option<PyRef<'py, CellState>>>>,
         threads: usize,
+        granular_anisotropy: Option<PyReadonlyArrayDyn<'py, f64>>,
     ) -> PyResult<(Vec<Bound<'py, PyDict>>, Vec<CellState>)> {
         guard(|| {
             let (n, k) = (cells.len(), self.inner.classes());
@@ -249,6 +260,10 @@ impl Coupling {
                 velocity: flat(&velocity, "velocity", n * k * 3)?,
                 temperature: flat(&temperature, "temperature", n * k)?,
                 granular_temperature: flat(&granular_temperature, "granular_temperature", n * k)?,
+                granular_anisotropy: match &granular_anisotropy {
+                    Some(a) => Some(flat(a, "granular_anisotropy", n * k * 3)?),
+                    None => None,
+                },
                 dt: flat(&dt, "dt", n)?,
                 gas_velocity: flat(&gas_velocity, "gas_velocity", n * 3)?,
                 gas_temperature: flat(&gas_temperature, "gas_temperature", n)?,
@@ -280,6 +295,7 @@ impl Coupling {
                     &row(b.velocity, 3 * k),
                     &row(b.temperature, k),
                     &row(b.granular_temperature, k),
+                    b.granular_anisotropy.map(|a| row(a, 3 * k)).as_deref(),
                     gas,
                     b.dt[i],
                 )

@@ -26,7 +26,8 @@ def edges_of(base):
 @pytest.fixture(scope="module")
 def coupling():
     base = agglo.Scenario.load(BASE)
-    return Coupling(base, edges_of(base), bodies=300, replicas=2)
+    # Re-lifted boxes, as these tests were written (persist is the default).
+    return Coupling(base, edges_of(base), bodies=300, replicas=2, persist=False)
 
 
 def monomers(c, phis):
@@ -187,3 +188,29 @@ def test_persistent_cells_take_up_what_transport_brings():
     assert 500 < second[0]["bodies"] < 700
     with pytest.raises(agglo.ScenarioError, match="persist"):
         Coupling(base, edges_of(base), keep_bodies=True, persist=True)
+    # persist is the default, and keep_bodies alone turns it off.
+    assert Coupling(base, edges_of(base)).persist
+    assert not Coupling(base, edges_of(base), keep_bodies=True).persist
+
+
+def test_an_anisotropic_class_comes_back_with_its_axes():
+    """Issue 37 item 4b: the diagonal of each class's granular temperature tensor,
+    lifted from ``granular_anisotropy`` and restricted as
+    ``class_granular_temperature_axes``, on a step without impacts (1 ns)."""
+    base = agglo.Scenario.load(BASE)
+    c = Coupling(base, edges_of(base), bodies=300, replicas=48)
+    inputs = dict(monomers(c, [0.02]), dt=1e-9)
+    a = np.ones((1, CLASSES, 3))
+    a[0, 0] = [10.0, 1.0, 1.0]  # variances 2.5, 0.25, 0.25 at T = 1
+    out, _ = c.advance(0, 0, **{k: (v[0] if isinstance(v, np.ndarray) else v)
+                               for k, v in inputs.items()},
+                       granular_anisotropy=a[0])
+    axes, se = out["class_granular_temperature_axes"][0], out.se["class_granular_temperature_axes"][0]
+    want = np.array([2.5, 0.25, 0.25])
+    assert np.all(se > 0) and np.all(se < 0.1 * want)
+    assert np.all(np.abs(axes - want) <= 3 * se), (axes, se)
+    with pytest.raises(agglo.ScenarioError, match=r"granular_anisotropy\[1\]"):
+        bad = a[0].copy()
+        bad[0, 1] = -1.0
+        c.advance(0, 0, **{k: (v[0] if isinstance(v, np.ndarray) else v)
+                           for k, v in inputs.items()}, granular_anisotropy=bad)

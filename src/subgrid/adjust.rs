@@ -15,7 +15,9 @@
 //!   lifting draws them (Maxwellian about u_a at T_a, θ_a), placed at random free spots
 //!   among the kept bodies;
 //! - **the kept bodies' state**: velocities shifted by u_a − u_e and their fluctuations
-//!   about the box's class mean scaled by √(T_a/T_e); temperatures shifted by θ_a − θ_e.
+//!   about the box's class mean scaled per axis by √(T_a,ii/T_e,ii) (the diagonal of
+//!   the granular temperature tensor, `ClassInput::granular_temperature_axes`);
+//!   temperatures shifted by θ_a − θ_e.
 //!
 //! A class whose input equals the remembered state bit for bit is left untouched; when
 //! every class is, the box resumes its snapshot exactly as a closed cell does (cell.rs).
@@ -34,8 +36,10 @@ use super::lift::{PlacementGrid, Stream, box_scene, is_trace, radius_of};
 /// What a flow solver without transport holds after adding Δt times `out`'s rates to
 /// `input`, per class: n ← n + Δt·number rate (clipped at 0), ρ, the momentum
 /// ρu, the granular energy ½ρ·3T and the thermal energy Cρθ likewise, and from them the
-/// representative mass ρ/n (kept inside the class's edges), u, T and θ. A class left
-/// without bodies or mass keeps its old mass, velocity and temperatures.
+/// representative mass ρ/n (kept inside the class's edges), u, T and θ; the anisotropy
+/// is the boxes' measured T_xx : T_yy : T_zz at the end (the input's where the class was
+/// not measured). A class left without bodies or mass keeps its old mass, velocity,
+/// temperatures and anisotropy.
 pub fn apply_rates(c: &Coupling, input: &CellInput, out: &CellOutput) -> CellInput {
     let dt = input.dt;
     let heat_capacity = c.base.material.C;
@@ -65,6 +69,9 @@ pub fn apply_rates(c: &Coupling, input: &CellInput, out: &CellOutput) -> CellInp
                 (rho / n).clamp(lo, hi * (1.0 - 1e-12))
             };
             let temperature = heat / (heat_capacity * rho);
+            let axes = o.granular_temperature_axes.map(|s| s.mean);
+            let measured =
+                axes.iter().all(|t| t.is_finite() && *t >= 0.0) && axes.iter().sum::<f64>() > 0.0;
             ClassInput {
                 number_density: n,
                 mass,
@@ -75,6 +82,11 @@ pub fn apply_rates(c: &Coupling, input: &CellInput, out: &CellOutput) -> CellInp
                     a.temperature
                 },
                 granular_temperature: (g / (1.5 * rho)).max(0.0),
+                granular_anisotropy: if measured {
+                    axes
+                } else {
+                    a.granular_anisotropy
+                },
             }
         })
         .collect();
@@ -147,13 +159,17 @@ pub(crate) fn adjusted_box(
             (b.velocity, b.temperature)
         } else {
             let m = mean[*k].map(|p| p / mass[*k]);
-            let scale = if e.granular_temperature > 0.0 {
-                (a.granular_temperature / e.granular_temperature).sqrt()
-            } else {
-                1.0
-            };
-            let v = [0, 1, 2]
-                .map(|x| m[x] + (a.velocity[x] - e.velocity[x]) + scale * (b.velocity[x] - m[x]));
+            let (ta, te) = (a.granular_temperature_axes(), e.granular_temperature_axes());
+            let scale = [0, 1, 2].map(|x| {
+                if te[x] > 0.0 {
+                    (ta[x] / te[x]).sqrt()
+                } else {
+                    1.0
+                }
+            });
+            let v = [0, 1, 2].map(|x| {
+                m[x] + (a.velocity[x] - e.velocity[x]) + scale[x] * (b.velocity[x] - m[x])
+            });
             let theta = b.temperature + (a.temperature - e.temperature);
             (v, if theta > 0.0 { theta } else { b.temperature })
         };
@@ -186,7 +202,7 @@ pub(crate) fn adjusted_box(
     for &(k, count) in &fresh {
         let class = &input.classes[k];
         let b = radius_of(class.mass, rho);
-        let sd = class.granular_temperature.sqrt();
+        let sd = class.granular_temperature_axes().map(f64::sqrt);
         for _ in 0..count {
             let position = grid.place(b, &mut rng).ok_or_else(|| {
                 SubgridError::input(
@@ -198,7 +214,7 @@ pub(crate) fn adjusted_box(
             })?;
             bodies.push(PlacedBody {
                 position,
-                velocity: Some([0, 1, 2].map(|x| class.velocity[x] + sd * rng.normal())),
+                velocity: Some([0, 1, 2].map(|x| class.velocity[x] + sd[x] * rng.normal())),
                 primaries: (class.mass / m0).max(1.0),
                 id: Some(next_id),
                 temperature: Some(class.temperature),

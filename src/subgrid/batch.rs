@@ -17,6 +17,7 @@ use super::error::SubgridError;
 use super::exchange::{CellInput, CellOutput};
 use super::lift::{box_volume, check_box, check_input, is_trace};
 use super::memory::check_memory;
+use super::profile::{Part, timed};
 use super::restrict::combine;
 
 /// What a cell's step starts from, once its input and state are checked.
@@ -52,7 +53,13 @@ fn prepare(
     let ignored = match kept {
         Some(_) if !c.persist => vec![false; input.classes.len()],
         _ => {
-            check_box(c, cell, input, volume)?;
+            match kept.and_then(|s| s.expected.as_ref()) {
+                // A kept box is only checked for what transport inserts into it: the
+                // bodies it made itself (an aggregate grown beyond a quarter of the
+                // side) are the closed cell's and stay.
+                Some(expected) => check_box(c, cell, &inserted(input, expected), volume)?,
+                None => check_box(c, cell, input, volume)?,
+            };
             input
                 .classes
                 .iter()
@@ -84,6 +91,20 @@ fn prepare(
         time: state.map_or(0.0, |s| s.time),
         steps: state.map_or(0, |s| s.macro_steps),
     })
+}
+
+/// What an adjusted box receives: `input`'s classes that transport grew since
+/// `expected` (the rest at density 0), the bodies lifting places among the kept ones.
+fn inserted(input: &CellInput, expected: &CellInput) -> CellInput {
+    let mut grown = input.clone();
+    for (a, e) in grown.classes.iter_mut().zip(&expected.classes) {
+        if *a == *e || a.number_density <= e.number_density {
+            a.number_density = 0.0;
+        } else {
+            a.number_density -= e.number_density;
+        }
+    }
+    grown
 }
 
 /// The range of V·Δt [m³ s] a step may have: every rate is a box sum times 1/(V·Δt)
@@ -137,15 +158,17 @@ fn finish(
     runs: Vec<ReplicaRun>,
 ) -> Result<(CellOutput, CellState), SubgridError> {
     let measured: Vec<_> = runs.iter().map(|r| r.measured.clone()).collect();
-    let mut output = combine(
-        c,
-        cell,
-        macro_step,
-        input,
-        prepared.volume,
-        &prepared.ignored,
-        &measured,
-    );
+    let mut output = timed(Part::Restrict, || {
+        combine(
+            c,
+            cell,
+            macro_step,
+            input,
+            prepared.volume,
+            &prepared.ignored,
+            &measured,
+        )
+    });
     if c.kernel {
         let mut pooled: Option<Accumulator> = None;
         for run in &runs {

@@ -15,16 +15,20 @@ use super::config::Coupling;
 use super::error::SubgridError;
 use super::exchange::CellInput;
 use super::lift::{gas_field, lift, replica_seed};
+use super::profile::{self, Part, timed};
 use super::restrict::{ClassSums, Replica};
 use crate::resources::{Counters, EnergyLedger};
 
 /// Layout version of [`CellState::to_bytes`]; bumped when it changes (3: the CRC-32
-/// after the postcard bytes, issue 39).
-pub const STATE_VERSION: u32 = 3;
+/// after the postcard bytes, issue 39; 4: each remembered class's granular
+/// anisotropy, issue 37).
+pub const STATE_VERSION: u32 = 4;
 
 /// A kept box between macro steps: the scene it was lifted as and the restart
 /// snapshot at the end of the last step (engine/restart.rs), from which the next step
-/// continues bit for bit.
+/// continues bit for bit. With `persist`, a box whose Poisson draw held no body is kept
+/// as empty (both fields empty) and lifted afresh at the next step: it remembers
+/// nothing.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct KeptBox {
     /// The lifted scenario, as JSON (its sections skip defaults, which a compact
@@ -32,6 +36,20 @@ pub struct KeptBox {
     pub scenario: String,
     /// [`RestartSnapshot::encode`]'s bytes.
     pub snapshot: Vec<u8>,
+}
+
+impl KeptBox {
+    /// The kept form of a box that holds no body (persist only).
+    fn empty() -> Self {
+        Self {
+            scenario: String::new(),
+            snapshot: Vec::new(),
+        }
+    }
+    /// True for a box kept with no body: lifted afresh at the next step.
+    pub fn is_empty(&self) -> bool {
+        self.snapshot.is_empty()
+    }
 }
 
 /// What a cell carries from one macro step to the next. Opaque to the flow solver:
@@ -157,6 +175,13 @@ impl CellState {
                         "expected.classes[{k}].mass = {m:e} (must be > 0 and finite [kg])"
                     ));
                 }
+                let a = class.granular_anisotropy;
+                if !a.iter().all(|x| x.is_finite() && *x >= 0.0) {
+                    return Err(format!(
+                        "expected.classes[{k}].granular_anisotropy = {a:?} (each must be ≥ 0 \
+                         and finite)"
+                    ));
+                }
             }
         }
         Ok(())
@@ -224,14 +249,15 @@ pub struct ReplicaRun {
 
 /// A box whose Poisson draw held no body (probability e^−N): it saw nothing, and
 /// counts as such (every sum and event 0), since dropping it would bias every rate up.
-/// A closed cell cannot keep an empty box: refused, asking for a larger N.
+/// A closed cell cannot keep an empty box (it would stay empty): refused, asking for a
+/// larger N. A persistent cell keeps it as empty, to be lifted afresh next step.
 fn empty_box(
     c: &Coupling,
     cell: u64,
     replica: u32,
     volume: f64,
 ) -> Result<ReplicaRun, SubgridError> {
-    if c.keep_bodies || c.persist {
+    if c.keep_bodies {
         return Err(SubgridError::input(
             cell,
             "bodies",
@@ -244,7 +270,7 @@ fn empty_box(
     Ok(ReplicaRun {
         measured: Replica::new(nothing.clone(), nothing, &zero.0, &zero.0, &zero.1, &zero.1),
         kernel: None,
-        kept: None,
+        kept: c.persist.then(KeptBox::empty),
     })
 }
 
@@ -267,39 +293,44 @@ pub fn run_replica(
         replica,
         reason,
     };
+    // A persistent box that held nothing has nothing to continue: lifted afresh.
+    let kept = kept.filter(|k| !k.is_empty());
     let (scenario, snapshot) = match kept {
         None => {
             let seed = replica_seed(c.base.seed, cell, macro_step, replica);
-            let s = lift(c, cell, input, volume, seed).map_err(|e| match e {
-                SubgridError::Run { reason, .. } => fail(reason),
-                other => other,
-            })?;
+            let s =
+                timed(Part::Lift, || lift(c, cell, input, volume, seed)).map_err(|e| match e {
+                    SubgridError::Run { reason, .. } => fail(reason),
+                    other => other,
+                })?;
             if s.cloud.bodies.is_empty() {
                 return empty_box(c, cell, replica, volume);
             }
             (s, None)
         }
         Some(kept) => {
-            let snapshot =
-                RestartSnapshot::decode(&kept.snapshot).map_err(|e| SubgridError::State {
+            let snapshot = timed(Part::Restore, || RestartSnapshot::decode(&kept.snapshot))
+                .map_err(|e| SubgridError::State {
                     cell,
                     reason: format!("replica {replica}: {e}"),
                 })?;
             if let Some(e) = expected.filter(|e| e.classes != input.classes) {
                 // Transport changed the cell: the box adjusted to it (adjust.rs).
                 let seed = replica_seed(c.base.seed, cell, macro_step, replica);
-                let s = adjusted_box(c, cell, input, e, volume, seed, &snapshot.bodies).map_err(
-                    |e| match e {
-                        SubgridError::Run { reason, .. } => fail(reason),
-                        other => other,
-                    },
-                )?;
+                let s = timed(Part::Adjust, || {
+                    adjusted_box(c, cell, input, e, volume, seed, &snapshot.bodies)
+                })
+                .map_err(|e| match e {
+                    SubgridError::Run { reason, .. } => fail(reason),
+                    other => other,
+                })?;
                 if s.cloud.bodies.is_empty() {
                     return empty_box(c, cell, replica, volume);
                 }
                 return run_scene(c, cell, replica, s, None);
             }
-            let mut s = Scenario::from_json(&kept.scenario).map_err(|e| SubgridError::State {
+            let read = timed(Part::Restore, || Scenario::from_json(&kept.scenario));
+            let mut s = read.map_err(|e| SubgridError::State {
                 cell,
                 reason: format!("replica {replica}: the kept scene does not read: {e}"),
             })?;
@@ -326,11 +357,14 @@ fn run_scene(
         replica,
         reason,
     };
+    let built = profile::start();
     let mut sim = crate::kernel::simulation(&scenario).map_err(|e| fail(e.to_string()))?;
     if let Some(snapshot) = &snapshot {
         sim.resume(snapshot).map_err(|e| fail(e.to_string()))?;
     }
-    let start = ClassSums::of(c, &sim.bodies());
+    profile::add(Part::Build, built);
+    let start = timed(Part::Restrict, || ClassSums::of(c, &sim.bodies()));
+    let running = profile::start();
     let (ledger0, counters0) = (sim.ledger(), sim.counters());
     let kernel = if c.kernel {
         let mut acc = Accumulator::new(c.kernel_grid(), Window::default(), Sampling::default());
@@ -353,7 +387,8 @@ fn run_scene(
         sim.run().map_err(|e| fail(e.to_string()))?;
         None
     };
-    let end = ClassSums::of(c, &sim.bodies());
+    profile::add(Part::Run, running);
+    let end = timed(Part::Restrict, || ClassSums::of(c, &sim.bodies()));
     let measured = Replica::new(
         start,
         end,
@@ -363,12 +398,14 @@ fn run_scene(
         &sim.counters(),
     );
     let kept = (c.keep_bodies || c.persist).then(|| {
-        // The run is complete: every body is at the end time (Simulation::run_until).
-        let snapshot = agglo_engine::restart::capture(sim.world_mut());
-        KeptBox {
-            scenario: scenario.to_json(),
-            snapshot: snapshot.encode(),
-        }
+        timed(Part::Keep, || {
+            // The run is complete: every body is at the end time (Simulation::run_until).
+            let snapshot = agglo_engine::restart::capture(sim.world_mut());
+            KeptBox {
+                scenario: scenario.to_json(),
+                snapshot: snapshot.encode(),
+            }
+        })
     });
     Ok(ReplicaRun {
         measured,

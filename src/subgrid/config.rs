@@ -47,12 +47,14 @@ pub struct Coupling {
     /// Keep each cell's bodies between macro steps (a closed cell, no transport):
     /// the first step lifts the input, later steps continue the same boxes and use
     /// only the input's gas state and Δt (its classes are still checked, not used).
-    /// Otherwise every step lifts afresh.
+    /// Excludes `persist` (set it to false).
     pub keep_bodies: bool,
     /// Keep each cell's boxes between macro steps and adjust them to the input by what
     /// transport changed since the last step's rates were applied (issue 37 item 3,
     /// [`super::apply_rates`]): bodies removed or added, velocities shifted and
     /// rescaled, per class. With no transport, the closed cell. Excludes `keep_bodies`.
+    /// The default ([`Self::new`]): re-lifted chains drift as Δt shrinks, persistent
+    /// ones do not (docs/coupling.md). With both false every step lifts afresh.
     pub persist: bool,
     /// Pool the kernel counts and exposure of the boxes into [`super::CellOutput::kernel`].
     pub kernel: bool,
@@ -65,7 +67,7 @@ pub const MAX_REPLICAS: u32 = 100_000;
 
 impl Coupling {
     /// A coupling of `base` on the classes of `edges`, with N = 1000 bodies per box,
-    /// K = 4 replicas, re-lifting every step, no kernel; checked.
+    /// K = 4 replicas, persistent boxes (`persist`), no kernel; checked.
     pub fn new(base: Scenario, edges: Vec<f64>) -> Result<Self, SubgridError> {
         let c = Self {
             base,
@@ -73,7 +75,7 @@ impl Coupling {
             bodies: BoxSize::Bodies(1000),
             replicas: 4,
             keep_bodies: false,
-            persist: false,
+            persist: true,
             kernel: false,
         };
         c.check()?;
@@ -185,8 +187,9 @@ impl Coupling {
             return Err(SubgridError::config(
                 "persist",
                 "true with keep_bodies",
-                "one of the two: keep_bodies ignores the input after the first step, persist \
-                 adjusts the kept boxes to it",
+                "one of the two (persist is the default: set it to false for a closed cell): \
+                 keep_bodies ignores the input after the first step, persist adjusts the kept \
+                 boxes to it",
             ));
         }
         if !(1..=MAX_REPLICAS).contains(&self.replicas) {

@@ -25,9 +25,28 @@ pub struct ClassInput {
     pub velocity: [f64; 3],
     /// Temperature θ_k of the class's bodies [K], > 0.
     pub temperature: f64,
-    /// Granular temperature T_k [m²/s²], ≥ 0: the variance of each velocity component
-    /// about the class mean (Maxwellian fluctuations are drawn with it).
+    /// Granular temperature T_k [m²/s²], ≥ 0: the mean over the three axes of the
+    /// variance of a velocity component about the class mean (Maxwellian fluctuations
+    /// are drawn with it; ½ρ_k·3T_k is the class's granular energy).
     pub granular_temperature: f64,
+    /// How T_k splits over the axes x, y, z: component i's variance is
+    /// T_k · 3a_i/(a_x + a_y + a_z) — the diagonal of the class's granular temperature
+    /// tensor, T_xx, T_yy, T_zz, whose mean is T_k. Each a_i ≥ 0 and finite, their sum
+    /// > 0; [`ISOTROPIC`] = [1, 1, 1].
+    pub granular_anisotropy: [f64; 3],
+}
+
+/// The anisotropy of an isotropic class ([`ClassInput::granular_anisotropy`]).
+pub const ISOTROPIC: [f64; 3] = [1.0; 3];
+
+impl ClassInput {
+    /// The diagonal of the class's granular temperature tensor, T_xx, T_yy, T_zz
+    /// [m²/s²] (their mean is `granular_temperature`).
+    pub fn granular_temperature_axes(&self) -> [f64; 3] {
+        let a = self.granular_anisotropy;
+        let sum = a[0] + a[1] + a[2];
+        a.map(|x| self.granular_temperature * 3.0 * x / sum)
+    }
 }
 
 /// The gas the boxes' bodies fly through (uniform over the cell and the macro step).
@@ -138,6 +157,10 @@ pub struct ClassOutput {
     /// holds at least two bodies, averaged over those (`granular_replicas`); NaN where
     /// none did (a one-body class has no measurable spread).
     pub granular_temperature: Stat,
+    /// The diagonal of the class's granular temperature tensor at the end, T_xx, T_yy,
+    /// T_zz [m²/s²]: per axis the unbiased variance Σm(v_i − ū_i)² / (M − Σm²/M), over
+    /// the same replicas as `granular_temperature` (their mean); NaN where none.
+    pub granular_temperature_axes: [Stat; 3],
     /// Replicas in which the class holds bodies at the end (the states above are means
     /// over these; with 0 they are NaN, "not measured").
     pub present: u32,
@@ -283,6 +306,9 @@ impl CellOutput {
             per_class("class_granular_temperature", "m^2/s^2", |c| {
                 c.granular_temperature
             }),
+            per_class3("class_granular_temperature_axes", "m^2/s^2", |c| {
+                c.granular_temperature_axes
+            }),
             per_class("present", "replicas", |c| Stat {
                 mean: c.present as f64,
                 se: 0.0,
@@ -354,9 +380,10 @@ fn kernel_columns(t: &crate::kernel::Tally) -> Vec<Column> {
 }
 
 impl CellInput {
-    /// An input from flat arrays of one value per class (`velocity`: 3 per class,
-    /// row-major), as the C and Python fronts hold them. Lengths are checked, values
-    /// are checked when the cell advances ([`super::check_input`]).
+    /// An input from flat arrays of one value per class (`velocity` and
+    /// `granular_anisotropy`: 3 per class, row-major; no anisotropy: isotropic), as the
+    /// C and Python fronts hold them. Lengths are checked, values are checked when the
+    /// cell advances ([`super::check_input`]).
     #[allow(clippy::too_many_arguments)]
     pub fn from_columns(
         cell: u64,
@@ -365,6 +392,7 @@ impl CellInput {
         velocity: &[f64],
         temperature: &[f64],
         granular_temperature: &[f64],
+        granular_anisotropy: Option<&[f64]>,
         gas: GasState,
         dt: f64,
     ) -> Result<Self, super::SubgridError> {
@@ -374,6 +402,11 @@ impl CellInput {
             ("velocity", velocity.len(), 3 * k),
             ("temperature", temperature.len(), k),
             ("granular_temperature", granular_temperature.len(), k),
+            (
+                "granular_anisotropy",
+                granular_anisotropy.map_or(3 * k, |a| a.len()),
+                3 * k,
+            ),
         ] {
             if len != want {
                 return Err(super::SubgridError::input(
@@ -391,6 +424,8 @@ impl CellInput {
                 velocity: [velocity[3 * i], velocity[3 * i + 1], velocity[3 * i + 2]],
                 temperature: temperature[i],
                 granular_temperature: granular_temperature[i],
+                granular_anisotropy: granular_anisotropy
+                    .map_or(ISOTROPIC, |a| [a[3 * i], a[3 * i + 1], a[3 * i + 2]]),
             })
             .collect();
         Ok(Self { classes, gas, dt })

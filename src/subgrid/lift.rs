@@ -20,6 +20,11 @@
 //!    largest bodies first, over a cell grid (O(N) for the volume fractions allowed).
 //! 5. **Velocities.** u_k plus independent Maxwellian fluctuations of variance T_k per
 //!    component; temperatures θ_k.
+//! 6. **Structure.** At a volume fraction ≥ [`EQUILIBRATE_FROM`], over a step short
+//!    against the collision time ([`SWEEPS_BELOW_IMPACTS`]), [`SWEEPS`] sweeps of
+//!    hard-core Metropolis moves relax the packing to the equilibrium hard-sphere
+//!    fluid's (structure.rs): random sequential addition's excess of pairs near contact
+//!    would otherwise set the first impacts.
 //!
 //! Every draw comes from one generator seeded by [`replica_seed`], so a box depends only
 //! on (base seed, cell, macro step, replica) and the input: never on which thread or
@@ -36,6 +41,7 @@ use agglo_engine::readable::exact;
 use super::config::{BoxSize, Coupling};
 use super::error::SubgridError;
 use super::exchange::CellInput;
+use super::structure::{EQUILIBRATE_FROM, SWEEPS, equilibrate};
 
 /// The word that tells subgrid seeds apart from the other derived seeds ("subg").
 const SUBGRID_TAG: u64 = 0x7375_6267;
@@ -252,6 +258,23 @@ pub fn check_input(c: &Coupling, cell: u64, input: &CellInput) -> Result<(), Sub
                      (here T_g ≤ {:e} m²/s²), so that drawn speeds stay under the limit",
                     sigma_limit * sigma_limit
                 ),
+            );
+        }
+        let a = class.granular_anisotropy;
+        for (i, x) in a.iter().enumerate() {
+            if !(x.is_finite() && *x >= 0.0 && *x <= 1e300) {
+                return bad(
+                    format!("classes[{k}].granular_anisotropy[{i}]"),
+                    format!("{x}"),
+                    "must be ≥ 0 and finite, at most 1e300 ([1, 1, 1]: isotropic)",
+                );
+            }
+        }
+        if a.iter().sum::<f64>() <= 0.0 {
+            return bad(
+                f("granular_anisotropy"),
+                format!("{a:?}"),
+                "the three weights must not all be 0 ([1, 1, 1]: isotropic)",
             );
         }
     }
@@ -472,6 +495,41 @@ pub fn lift(
     volume: f64,
     seed: u64,
 ) -> Result<Scenario, SubgridError> {
+    lift_with_sweeps(c, cell, input, volume, seed, None)
+}
+
+/// True when a box lifted for `input` at volume fraction `fraction` gets the Metropolis
+/// sweeps (structure.rs): a fraction ≥ [`EQUILIBRATE_FROM`] and a step short enough that
+/// its first impacts weigh — fewer than [`SWEEPS_BELOW_IMPACTS`] impacts per body
+/// expected over Δt (free-molecular estimate). Over a longer step the box's own impacts
+/// bring it to the fluid's structure within its first impacts per body, while the sweeps
+/// would cost most of a short run: at P04's cell (Δt = 1 ms, thousands of impacts per
+/// body) 20 sweeps took 0.8 of the boxes' run time (docs/coupling.md).
+fn needs_sweeps(c: &Coupling, input: &CellInput, fraction: f64) -> bool {
+    if fraction < EQUILIBRATE_FROM {
+        return false;
+    }
+    let n: f64 = input.classes.iter().map(|k| k.number_density).sum();
+    let per_body = 2.0 * expected_impact_density(c, input) / n;
+    per_body < SWEEPS_BELOW_IMPACTS
+}
+
+/// Lifting sweeps a dense box only when fewer impacts than this are expected per body
+/// over Δt ([`needs_sweeps`]).
+pub const SWEEPS_BELOW_IMPACTS: f64 = 10.0;
+
+/// [`lift`] with `sweeps` Metropolis sweeps after placement (structure.rs), or, with
+/// `None`, the default: [`SWEEPS`] at a volume fraction ≥ [`EQUILIBRATE_FROM`] over a
+/// step with fewer than [`SWEEPS_BELOW_IMPACTS`] impacts expected per body, none
+/// otherwise. For measuring the structure against the sweeps.
+pub fn lift_with_sweeps(
+    c: &Coupling,
+    cell: u64,
+    input: &CellInput,
+    volume: f64,
+    seed: u64,
+    sweeps: Option<u32>,
+) -> Result<Scenario, SubgridError> {
     let rho = c.base.material.rho;
     let m0 = c.primary().1;
     let side = volume.cbrt();
@@ -528,11 +586,18 @@ pub fn lift(
         }
         // Independent Maxwellian draws about the class mean (module doc: no sample mean
         // subtracted, so each body and each pair has the cell's velocity statistics).
-        let sd = class.granular_temperature.sqrt();
+        let sd = class.granular_temperature_axes().map(f64::sqrt);
         for body in &mut bodies[first..] {
-            body.velocity = Some([0, 1, 2].map(|x| class.velocity[x] + sd * rng.normal()));
+            body.velocity = Some([0, 1, 2].map(|x| class.velocity[x] + sd[x] * rng.normal()));
         }
     }
+    let sweeps = sweeps.unwrap_or(if needs_sweeps(c, input, fraction) {
+        SWEEPS
+    } else {
+        0
+    });
+    let size = |b: &PlacedBody| radius_of(b.mass.unwrap_or(m0), rho);
+    equilibrate(&mut bodies, side, size, sweeps, &mut rng);
     // Not validated here: building its simulation validates it (once, 12 % of a lift
     // at P04's conditions).
     Ok(box_scene(c, input, side, seed, bodies))

@@ -27,7 +27,7 @@
 //! let coupling = Coupling::new(base, vec![0.5 * m0, 1.5 * m0, 2.5 * m0, 1e6 * m0])?;
 //! let class = |n: f64, m: f64| ClassInput {
 //!     number_density: n, mass: m, velocity: [0.0; 3], temperature: 300.0,
-//!     granular_temperature: 1.0,
+//!     granular_temperature: 1.0, granular_anisotropy: ISOTROPIC,
 //! };
 //! let input = CellInput {
 //!     classes: vec![class(1e9, m0), class(0.0, 2.0 * m0), class(0.0, 3.0 * m0)],
@@ -54,7 +54,9 @@ mod error;
 mod exchange;
 mod lift;
 mod memory;
+pub mod profile;
 mod restrict;
+mod structure;
 
 pub use adjust::apply_rates;
 #[cfg(feature = "mpi")]
@@ -63,10 +65,14 @@ pub use batch::{ReplicaTask, VOLUME_TIME_RANGE, advance_cell, advance_cells, run
 pub use cell::{CellState, KeptBox, ReplicaRun, STATE_VERSION};
 pub use config::{BoxSize, Coupling, MAX_BODIES, MAX_REPLICAS};
 pub use error::SubgridError;
-pub use exchange::{CellInput, CellOutput, ClassInput, ClassOutput, Column, GasState, Stat};
+pub use exchange::{
+    CellInput, CellOutput, ClassInput, ClassOutput, Column, GasState, ISOTROPIC, Stat,
+};
 pub use lift::{
-    MAX_DIAMETER_PER_SIDE, MAX_VOLUME_FRACTION, TRACE_BODIES, box_volume, check_box, check_input,
-    draw_counts, expected_impact_density, is_trace, lift, radius_of, replica_seed,
+    MAX_DIAMETER_PER_SIDE, MAX_VOLUME_FRACTION, SWEEPS_BELOW_IMPACTS, TRACE_BODIES, box_volume,
+    check_box, check_input, draw_counts, expected_impact_density, is_trace, lift, lift_with_sweeps,
+    radius_of, replica_seed,
 };
 pub use memory::{KEPT_BYTES_PER_BODY, LIFT_BYTES_PER_BODY, cell_bytes, check_memory};
 pub use restrict::{ClassSums, Replica};
+pub use structure::{EQUILIBRATE_FROM, STEP, SWEEPS};

@@ -27,6 +27,8 @@ pub struct ClassSums {
     pub mass_temperature: Vec<f64>,
     /// Σ m |v − ū_k|² about the class's mass-weighted mean [kg m²/s²].
     pub fluctuation: Vec<f64>,
+    /// Σ m (v_i − ū_k,i)² per axis [kg m²/s²] (their sum is `fluctuation`).
+    pub fluctuation_axes: Vec<[f64; 3]>,
     /// Σ m² [kg²] (the effective sample size of a mass-weighted variance).
     pub mass_squared: Vec<f64>,
 }
@@ -41,6 +43,7 @@ impl ClassSums {
             momentum: vec![[0.0; 3]; k],
             mass_temperature: vec![0.0; k],
             fluctuation: vec![0.0; k],
+            fluctuation_axes: vec![[0.0; 3]; k],
             mass_squared: vec![0.0; k],
         };
         let mut sorted: Vec<&BodyState> = bodies.iter().collect();
@@ -59,8 +62,11 @@ impl ClassSums {
         // Second pass about the class means (no cancellation of large means).
         for (b, &k) in sorted.iter().zip(&classes) {
             let mean = s.momentum[k].map(|p| p / s.mass[k]);
-            let d2: f64 = (0..3).map(|x| (b.velocity[x] - mean[x]).powi(2)).sum();
-            s.fluctuation[k] += b.mass * d2;
+            let d2 = [0, 1, 2].map(|x| (b.velocity[x] - mean[x]).powi(2));
+            s.fluctuation[k] += b.mass * (d2[0] + d2[1] + d2[2]);
+            for x in 0..3 {
+                s.fluctuation_axes[k][x] += b.mass * d2[x];
+            }
         }
         s
     }
@@ -227,6 +233,11 @@ pub fn combine(
                 }),
                 granular_temperature: stat_where(replicas, measured, |r| {
                     r.end.fluctuation[k] / (3.0 * r.end.effective_mass(k))
+                }),
+                granular_temperature_axes: [0, 1, 2].map(|x| {
+                    stat_where(replicas, measured, |r| {
+                        r.end.fluctuation_axes[k][x] / r.end.effective_mass(k)
+                    })
                 }),
                 present: replicas.iter().filter(|r| present(r)).count() as u32,
                 granular_replicas: replicas.iter().filter(|r| measured(r)).count() as u32,

@@ -46,6 +46,7 @@ mod study;
 mod subgrid;
 mod subgrid_harden;
 mod subgrid_persist;
+mod subgrid_structure;
 mod subgrid_unbiased;
 mod unfinishable_runs;
 mod walls;

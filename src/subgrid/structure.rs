@@ -1,0 +1,156 @@
+//! The lifted box's pair structure (issue 37 item 4; docs/model.md §15).
+//!
+//! Random sequential addition (lift.rs) leaves more pairs near contact than the
+//! equilibrium hard-sphere fluid at the same volume fraction: at φ = 0.26 its contact
+//! value, and with it the first-instant impact rate, is about 1.3 × Carnahan–Starling's.
+//! A few sweeps of hard-core Metropolis displacement moves relax the packing toward the
+//! equilibrium fluid (every non-overlapping configuration is equally likely, which these
+//! moves sample), so that the box's first impacts are the flow's, not the placement's.
+//!
+//! Each sweep tries one move per body, in body order: a displacement drawn uniformly in a
+//! cube of half-width [`STEP`] × the body's radius, accepted when the body overlaps no
+//! other (periodic images included). Neighbours come from a cell grid at least one
+//! largest diameter wide, so a sweep is O(N).
+
+use crate::cloud::PlacedBody;
+
+use super::lift::Stream;
+
+/// Sweeps given to a box lifted at volume fraction ≥ [`EQUILIBRATE_FROM`] over a short
+/// step (lift.rs, `needs_sweeps`; docs/coupling.md gives the contact value against
+/// sweeps).
+pub const SWEEPS: u32 = 20;
+
+/// Below this volume fraction a lifted box keeps its random sequential packing: its
+/// contact value is within about 1 % of the equilibrium fluid's (docs/coupling.md), and
+/// the sweeps would cost more than they change.
+pub const EQUILIBRATE_FROM: f64 = 0.1;
+
+/// A move's half-width in units of the moving body's radius (a step of 0.3 radii
+/// relaxed the contact value about half as fast per sweep).
+pub const STEP: f64 = 1.0;
+
+/// Cell list over the periodic cube [−side/2, side/2)³.
+struct Cells {
+    side: f64,
+    per_side: usize,
+    members: Vec<Vec<usize>>,
+}
+
+impl Cells {
+    fn new(side: f64, width: f64, bodies: &[PlacedBody]) -> Self {
+        let per_side = ((side / width).floor() as usize).clamp(1, 64);
+        let mut cells = Self {
+            side,
+            per_side,
+            members: vec![Vec::new(); per_side.pow(3)],
+        };
+        for (i, b) in bodies.iter().enumerate() {
+            let c = cells.index(b.position);
+            cells.members[c].push(i);
+        }
+        cells
+    }
+
+    fn coordinates(&self, p: [f64; 3]) -> [usize; 3] {
+        p.map(|x| {
+            let u = (x / self.side + 0.5) * self.per_side as f64;
+            (u.floor().max(0.0) as usize).min(self.per_side - 1)
+        })
+    }
+
+    fn index(&self, p: [f64; 3]) -> usize {
+        let [x, y, z] = self.coordinates(p);
+        (x * self.per_side + y) * self.per_side + z
+    }
+
+    /// The cells around `p` (each once, also when there are fewer than three a side),
+    /// into `out` (cleared first).
+    fn around(&self, p: [f64; 3], out: &mut Vec<usize>) {
+        out.clear();
+        let n = self.per_side;
+        let c = self.coordinates(p);
+        // Per axis the neighbour indices: c − 1, c, c + 1 wrapped, or every index.
+        let axis = |i: usize| -> ([usize; 3], usize) {
+            if n >= 3 {
+                ([(i + n - 1) % n, i, (i + 1) % n], 3)
+            } else {
+                ([0, 1, 2], n)
+            }
+        };
+        let ((xs, nx), (ys, ny), (zs, nz)) = (axis(c[0]), axis(c[1]), axis(c[2]));
+        for &x in &xs[..nx] {
+            for &y in &ys[..ny] {
+                for &z in &zs[..nz] {
+                    out.push((x * n + y) * n + z);
+                }
+            }
+        }
+    }
+}
+
+/// The radius [m] of each body (as lifting sized it).
+fn radii(bodies: &[PlacedBody], radius_of: impl Fn(&PlacedBody) -> f64) -> Vec<f64> {
+    bodies.iter().map(radius_of).collect()
+}
+
+/// Give `bodies` (no overlaps, inside the periodic cube of side `side` [m]) `sweeps`
+/// Metropolis sweeps; `radius_of` gives a body's radius. Returns the fraction of moves
+/// accepted.
+pub(crate) fn equilibrate(
+    bodies: &mut [PlacedBody],
+    side: f64,
+    radius_of: impl Fn(&PlacedBody) -> f64,
+    sweeps: u32,
+    rng: &mut Stream,
+) -> f64 {
+    if bodies.len() < 2 || sweeps == 0 {
+        return 0.0;
+    }
+    let radius = radii(bodies, radius_of);
+    let largest = radius.iter().cloned().fold(0.0, f64::max);
+    let mut cells = Cells::new(side, 2.0 * largest, bodies);
+    let half = 0.5 * side;
+    let wrap = |x: f64| x - side * ((x + half) / side).floor();
+    let (mut tried, mut accepted) = (0u64, 0u64);
+    let mut near = Vec::with_capacity(27);
+    for _ in 0..sweeps {
+        for i in 0..bodies.len() {
+            let old = bodies[i].position;
+            let d = STEP * radius[i];
+            let new = [0, 1, 2].map(|x| wrap(old[x] + d * (2.0 * rng.uniform() - 1.0)));
+            tried += 1;
+            cells.around(new, &mut near);
+            let free = near.iter().all(|&c| {
+                cells.members[c].iter().all(|&j| {
+                    if j == i {
+                        return true;
+                    }
+                    let q = bodies[j].position;
+                    let mut d2 = 0.0;
+                    for x in 0..3 {
+                        let d = new[x] - q[x];
+                        let d = d - side * (d / side).round();
+                        d2 += d * d;
+                    }
+                    let reach = radius[i] + radius[j];
+                    d2 >= reach * reach
+                })
+            });
+            if !free {
+                continue;
+            }
+            accepted += 1;
+            let (from, to) = (cells.index(old), cells.index(new));
+            if from != to {
+                let at = cells.members[from].iter().position(|&j| j == i);
+                if let Some(at) = at {
+                    cells.members[from].swap_remove(at);
+                }
+                cells.members[to].push(i);
+            }
+            bodies[i].position = new;
+        }
+    }
+    accepted as f64 / tried as f64
+}
