@@ -15,6 +15,7 @@ pub mod schema;
 pub mod series;
 pub mod sizes;
 pub mod snapshots;
+pub mod step_tables;
 pub mod table;
 
 use std::io::Write;
