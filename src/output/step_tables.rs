@@ -107,4 +107,5 @@ macro_rules! registry {
 // line by hand, so that adding a table is adding a line).
 #[rustfmt::skip]
 registry! {
+    impact_speeds,
 }
