@@ -21,7 +21,8 @@ use crate::totals::totals;
 use super::access::{ExtensionSystems, refuse_unsafe_access};
 use super::simulation::Simulation;
 use super::{
-    ForceStep, Pipeline, RunInfo, SimStep, StepSystems, advance_clock, run_forces, short_name,
+    ForceStep, Pipeline, Rotate, RunInfo, SimStep, StepSystems, advance_clock, run_forces,
+    short_name,
 };
 
 /// Entity indices kept below the bodies' for resources (a default scene holds 27, the
@@ -37,11 +38,18 @@ pub trait SimPlugin {
     fn build(&self, sim: &mut SimBuilder);
 }
 
-/// Swaps one subscribed message type's buffers (engine/hooks.rs).
-pub(super) type Rotate = fn(&mut World);
-
 /// Work a plugin leaves for [`SimBuilder::build`].
 pub(crate) type Finisher = Box<dyn FnOnce(&mut World)>;
+
+impl Simulation {
+    /// Start building with custom plugins. The built-in physics is one call away
+    /// (`SimBuilder::add_default_plugins`, from `agglo_systems::AddDefaultPlugins`);
+    /// `agglo_systems::DefaultPlugins::new` builds a scene with it alone, and
+    /// `agglo::prelude`'s `Simulation::new` with it and the registered extensions.
+    pub fn builder(scene: &dyn Scene) -> Result<SimBuilder, SimError> {
+        SimBuilder::new(scene)
+    }
+}
 
 /// A world and schedule under construction: the calls every plugin may make (its own
 /// resources, systems in any stage, forces, fields, hooks, carried quantities, restart

@@ -156,6 +156,9 @@ fn short_name(full: &str) -> String {
     parts.into_iter().rev().collect::<Vec<_>>().join("::")
 }
 
+/// Swaps one subscribed message type's buffers (engine/hooks.rs).
+type Rotate = fn(&mut World);
+
 /// Closes the step: t ← t + Δt (exactly T on the last step), L ← L + 1.
 fn advance_clock(
     mut clock: ResMut<SimClock>,

@@ -16,10 +16,8 @@ use crate::error::SimError;
 use crate::field::Field;
 use crate::resources::*;
 use crate::scene::{Material, Physics, TimeControl};
-use crate::setup::Scene;
 
-use super::builder::{Rotate, SimBuilder};
-use super::{Pipeline, RunInfo, kick};
+use super::{Pipeline, Rotate, RunInfo, kick};
 
 /// A scenario's world and pipeline, ready to step.
 pub struct Simulation {
@@ -43,13 +41,6 @@ pub struct Simulation {
 }
 
 impl Simulation {
-    /// Start building with custom plugins. The built-in physics is one call away
-    /// (`SimBuilder::add_default_plugins`, from `agglo_systems::DefaultPlugins`), and
-    /// `Simulation::new` builds a scene with it alone.
-    pub fn builder(scene: &dyn Scene) -> Result<SimBuilder, SimError> {
-        SimBuilder::new(scene)
-    }
-
     /// The run's name, seed and initial body count.
     pub fn info(&self) -> &RunInfo {
         &self.info
@@ -370,7 +361,7 @@ impl Simulation {
     }
 
     /// The messages of type `M` written during the step just taken, in the order they
-    /// were written; empty when nobody subscribed to `M` ([`SimBuilder::subscribe`]).
+    /// were written; empty when nobody subscribed to `M` ([`crate::schedule::SimBuilder::subscribe`]).
     /// Read it from the observer of [`Simulation::run_with`], after each step.
     pub fn step_messages<M: Message>(&self) -> impl Iterator<Item = &M> + '_ {
         self.world
@@ -379,7 +370,7 @@ impl Simulation {
             .flat_map(|m| m.iter_current_update_messages())
     }
 
-    /// The carried quantities an extension registered ([`SimBuilder::carry`]) of every
+    /// The carried quantities an extension registered ([`crate::schedule::SimBuilder::carry`]) of every
     /// body, sorted by id (no columns when none is registered).
     pub fn carried(&self) -> crate::carried::CarriedColumns {
         crate::carried::carried_columns(&self.world)
