@@ -13,6 +13,8 @@ use glam::DVec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use crate::error::ValidationIssue;
+use crate::issues::Issues;
 pub use crate::laws::cooling::CoolingMethod;
 use crate::laws::hardness::hardness;
 
@@ -113,6 +115,26 @@ pub struct Material {
 /// implies: the hardness law with its overflow rule, the radius of a mass, whether it
 /// cools, its surface energy with `null` read as ∞.
 impl Material {
+    /// Range problems of the `material` section, by full path.
+    pub fn issues(&self) -> Vec<ValidationIssue> {
+        let mut v = Issues::default();
+        let m = self;
+        v.positive("material.rho", m.rho);
+        v.positive("material.H0", m.H0);
+        v.positive("material.C", m.C);
+        v.non_negative("material.Q", m.Q);
+        v.non_negative("material.alpha", m.alpha);
+        if let Some(g) = m.gamma {
+            v.positive("material.gamma", g);
+        }
+        v.non_negative("material.mu0", m.mu0);
+        v.range_closed("material.epsilon", m.epsilon, 0.0, 1.0, "0 ≤ ε ≤ 1");
+        v.non_negative("material.hc", m.hc);
+        v.positive("material.theta0", m.theta0);
+        v.non_negative("material.theta_s", m.theta_s);
+        v.issues
+    }
+
     /// Hardness H = H0 · exp(Q / (R θ)) [Pa]; +∞ when the exponent exceeds 700
     /// (docs/model.md §1, "hardness overflow"). Never NaN for θ > 0.
     pub fn hardness(&self, theta: f64) -> f64 {
@@ -146,6 +168,13 @@ pub struct BoxGeometry {
 }
 
 impl BoxGeometry {
+    /// Range problems of the `box` section, by full path.
+    pub fn issues(&self) -> Vec<ValidationIssue> {
+        let mut v = Issues::default();
+        v.positive("box.half_width", self.half_width);
+        v.issues
+    }
+
     /// Side length 2D [m].
     pub fn side(&self) -> f64 {
         2.0 * self.half_width
@@ -190,6 +219,60 @@ pub struct TimeControl {
     /// whenever the scene allows it.
     #[serde(default, skip_serializing_if = "Core::is_auto")]
     pub core: Core,
+}
+
+impl TimeControl {
+    /// Range problems of the `time` section, by full path; the core asked for is checked against `physics` (docs/model.md §4).
+    pub fn issues(&self, physics: &Physics) -> Vec<ValidationIssue> {
+        let mut v = Issues::default();
+        let t = self;
+        v.positive("time.end", t.end);
+        if t.max_steps == 0 {
+            v.push("time.max_steps", "≥ 1", 0.0);
+        }
+        match &t.stepping {
+            Stepping::Adaptive {
+                step_factor,
+                dt_min,
+                dt_max,
+                skin,
+            } => {
+                v.positive("time.stepping.adaptive.step_factor", *step_factor);
+                v.positive("time.stepping.adaptive.dt_min", *dt_min);
+                v.positive("time.stepping.adaptive.dt_max", *dt_max);
+                if dt_min.is_finite() && dt_max.is_finite() && dt_min > dt_max {
+                    v.issues.push(ValidationIssue {
+                        path: "time.stepping.adaptive.dt_min".into(),
+                        message: format!(
+                            "must satisfy dt_min ≤ dt_max (got {dt_min:e} > {dt_max:e})"
+                        ),
+                    });
+                }
+                v.positive("time.stepping.adaptive.skin", *skin);
+                // Every step is at most Δt_max long: at least T/Δt_max steps.
+                v.step_count_fits(
+                    "time.stepping.adaptive.dt_max",
+                    "at least T/Δt_max",
+                    t.end,
+                    *dt_max,
+                    t.max_steps,
+                );
+            }
+            Stepping::Fixed { dt } => {
+                v.positive("time.stepping.fixed.dt", *dt);
+                v.step_count_fits("time.stepping.fixed.dt", "T/Δt", t.end, *dt, t.max_steps);
+            }
+        }
+        if matches!(t.core, Core::Events | Core::EventsBruteForce)
+            && let Some(message) = event_core_needs(self, physics)
+        {
+            v.issues.push(ValidationIssue {
+                path: "time.core".into(),
+                message,
+            });
+        }
+        v.issues
+    }
 }
 
 /// The two ways of advancing a scene (docs/model.md §4).

@@ -1,0 +1,105 @@
+//! Range checks of a scenario's sections, each naming its field by its full path and
+//! saying the allowed range and the value given (`material.rho: allowed a finite number
+//! > 0 (got -1)`). Every built-in section checks itself with these (an `issues()` next
+//! to its type: the box and the material in `scene.rs`, the cloud in `cloud.rs`, the
+//! field in `field.rs`, the impact model and the diagnostics in their plugins, the
+//! `output` section with the drivers), as an extension's section does
+//! (`agglo::plugins::PluginSection`); the scenario's `validate` is the loop over them
+//! plus the checks that join two sections.
+
+use crate::error::ValidationIssue;
+use crate::scene::MAX_SPEED;
+
+/// Collects range violations with their field paths.
+#[derive(Debug, Default)]
+pub struct Issues {
+    pub issues: Vec<ValidationIssue>,
+}
+
+impl Issues {
+    /// `path`: allowed `allowed` (got `got`), the value printed exactly.
+    pub fn push(&mut self, path: &str, allowed: &str, got: f64) {
+        self.issues.push(ValidationIssue {
+            path: path.into(),
+            message: format!("allowed {allowed} (got {})", crate::readable::exact(got)),
+        });
+    }
+    /// A problem said in words of its own.
+    pub fn say(&mut self, path: &str, message: impl Into<String>) {
+        self.issues.push(ValidationIssue {
+            path: path.into(),
+            message: message.into(),
+        });
+    }
+    pub fn finite(&mut self, path: &str, x: f64) {
+        if !x.is_finite() {
+            self.push(path, "a finite number", x);
+        }
+    }
+    pub fn positive(&mut self, path: &str, x: f64) {
+        if !(x.is_finite() && x > 0.0) {
+            self.push(path, "a finite number > 0", x);
+        }
+    }
+    pub fn non_negative(&mut self, path: &str, x: f64) {
+        if !(x.is_finite() && x >= 0.0) {
+            self.push(path, "a finite number ≥ 0", x);
+        }
+    }
+    pub fn range_open(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
+        if !(x > lo && x < hi) {
+            self.push(path, allowed, x);
+        }
+    }
+    pub fn range_closed(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
+        if !(x >= lo && x <= hi) {
+            self.push(path, allowed, x);
+        }
+    }
+    /// A speed [m/s] above [`MAX_SPEED`]. ∞ counts (finite components whose norm
+    /// overflows, e.g. v̄ = (1e200, 0, 0), validated and then hung the run); NaN is
+    /// reported by the finiteness checks.
+    pub fn below_speed_limit(&mut self, path: &str, speed: f64) {
+        if speed > MAX_SPEED {
+            self.say(
+                path,
+                format!(
+                    "speed {speed:.4e} m/s is not physical; allowed ≤ {MAX_SPEED:e} m/s \
+                     (100 km/s, above the fastest natural impacts)"
+                ),
+            );
+        }
+    }
+    /// A run of `end` [s] in steps of at most `dt` [s] that needs more than `max_steps`
+    /// steps can never finish. Non-positive or non-finite values are reported elsewhere.
+    pub fn step_count_fits(&mut self, path: &str, count: &str, end: f64, dt: f64, max_steps: u64) {
+        if !(end.is_finite() && end > 0.0 && dt.is_finite() && dt > 0.0) {
+            return;
+        }
+        let planned = planned_steps(end, dt);
+        if planned > max_steps as f64 {
+            self.say(
+                path,
+                format!(
+                    "{count} = {end:e} s / {dt:e} s = {planned:.3e} planned steps exceed \
+                     time.max_steps = {max_steps}; allowed Δt ≥ time.end / time.max_steps \
+                     = {:e} s (or raise time.max_steps)",
+                    end / max_steps as f64
+                ),
+            );
+        }
+    }
+}
+
+/// Length of a 3-vector [same unit as its components].
+/// |x|, without overflowing for components up to f64::MAX / √3 (the sum of squares of
+/// components ≳ 1.34e154 is ∞; hypot scales first).
+pub fn norm(x: [f64; 3]) -> f64 {
+    x[0].hypot(x[1]).hypot(x[2])
+}
+
+/// Steps a run of length `end` [s] needs at steps of at most `dt` [s]: ⌈T/Δt⌉, less a
+/// relative 1e-12 (the clock lands on T when a step ends that close to it).
+pub fn planned_steps(end: f64, dt: f64) -> f64 {
+    (end / dt * (1.0 - 1e-12)).ceil()
+}
