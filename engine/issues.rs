@@ -1,6 +1,7 @@
 //! Range checks of a scenario's sections, each naming its field by its full path and
-//! saying the allowed range and the value given (`material.rho: allowed a finite number
-//! > 0 (got -1)`). Every built-in section checks itself with these (an `issues()` next
+//! saying the allowed range and the value given
+//! (`material.rho: allowed a finite number > 0 (got -1)`). Every built-in section checks
+//! itself with these (an `issues()` next
 //! to its type: the box and the material in `scene.rs`, the cloud in `cloud.rs`, the
 //! field in `field.rs`, the impact model and the diagnostics in their plugins, the
 //! `output` section with the drivers), as an extension's section does
