@@ -15,8 +15,10 @@ use glam::DVec3;
 use rand::{Rng, RngExt};
 
 use crate::components::BodyState;
-use crate::error::SimError;
+use crate::error::{SimError, ValidationIssue};
+use crate::issues::{Issues, norm};
 use crate::laws::grid::NeighbourGrid;
+use crate::scene::MAX_SPEED;
 use crate::scene::{BoxGeometry, Material};
 
 use schemars::JsonSchema;
@@ -75,6 +77,163 @@ pub struct Cloud {
     /// the scenario then holds the bodies, and this field is cleared.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub from_file: Option<String>,
+}
+
+impl Cloud {
+    /// Range problems of the `cloud` section, by full path (a radius is checked against the box it must fit).
+    pub fn issues(&self, domain: &BoxGeometry) -> Vec<ValidationIssue> {
+        let mut v = Issues::default();
+        let c = self;
+        // The upper limit is the machine's memory (crate::memory, checked by `run` and
+        // `validate` before anything is allocated), and the event core's 32-bit slots.
+        if c.count == 0 || c.count >= u32::MAX as usize {
+            v.push(
+                "cloud.count",
+                "1 ≤ N < 2^32 and within the machine's memory (left out only with \
+                 cloud.bodies or cloud.from_file)",
+                c.count as f64,
+            );
+        }
+        match (c.radius, c.size_ratio) {
+            (Some(_), Some(_)) => v.issues.push(ValidationIssue {
+                path: "cloud".into(),
+                message: "give exactly one of `radius` [m] or `size_ratio`, not both (over a \
+                          scenario that gives the other: --set cloud.radius=R --set \
+                          cloud.size_ratio=null, or --set cloud.size_ratio=S --set \
+                          cloud.radius=null)"
+                    .into(),
+            }),
+            (None, None) => v.issues.push(ValidationIssue {
+                path: "cloud".into(),
+                message: "give exactly one of `radius` [m] or `size_ratio`".into(),
+            }),
+            (Some(b), None) => {
+                v.positive("cloud.radius", b);
+                if b.is_finite() && b > 0.0 && domain.half_width > 0.0 {
+                    let s = self.size_ratio_of_radius(b, domain);
+                    if s >= 0.9 {
+                        v.issues.push(ValidationIssue {
+                            path: "cloud.radius".into(),
+                            message: format!(
+                                "radius {b:e} m gives size ratio s = {s:.4}; allowed s < 0.9 (volume fraction < 0.38)"
+                            ),
+                        });
+                    }
+                }
+            }
+            (None, Some(s)) => v.range_open("cloud.size_ratio", s, 0.0, 0.9, "0 < s < 0.9"),
+        }
+        for k in 0..3 {
+            v.finite(&format!("cloud.v_mean.{k}"), c.v_mean[k]);
+        }
+        v.below_speed_limit("cloud.v_mean", norm(c.v_mean));
+        let maxwell = c.velocity_distribution == VelocityDistribution::Maxwell;
+        match c.v_rel {
+            Some(v_rel) if maxwell => {
+                let _ = v_rel;
+                v.issues.push(ValidationIssue {
+                    path: "cloud.v_rel".into(),
+                    message: "not used by velocity_distribution = \"maxwell\" (give granular_temperature)".into(),
+                });
+            }
+            Some(v_rel) => {
+                for (k, &x) in v_rel.iter().enumerate() {
+                    v.non_negative(&format!("cloud.v_rel.{k}"), x);
+                    v.below_speed_limit(&format!("cloud.v_rel.{k}"), x);
+                }
+            }
+            None if c.draws_uniform_velocities() => v.issues.push(ValidationIssue {
+                path: "cloud.v_rel".into(),
+                message: "required: velocities are drawn as v̄ + v_rel ∘ λ (a generated cloud, or \
+                          explicit bodies without a velocity); give [vx, vy, vz] amplitudes [m/s], \
+                          or every body its velocity"
+                    .into(),
+            }),
+            None => {}
+        }
+        match (maxwell, c.granular_temperature) {
+            (true, Some(tg)) => {
+                v.non_negative("cloud.granular_temperature", tg);
+                v.below_speed_limit("cloud.granular_temperature (as √T_g)", tg.max(0.0).sqrt());
+            }
+            (true, None) => v.issues.push(ValidationIssue {
+                path: "cloud.granular_temperature".into(),
+                message: "required by velocity_distribution = \"maxwell\": T_g [m²/s²], the variance of each velocity component".into(),
+            }),
+            (false, Some(_)) => v.issues.push(ValidationIssue {
+                path: "cloud.granular_temperature".into(),
+                message: "used only by velocity_distribution = \"maxwell\"".into(),
+            }),
+            (false, None) => {}
+        }
+        if c.remove_drift && c.v_mean != [0.0; 3] {
+            v.issues.push(ValidationIssue {
+                path: "cloud.remove_drift".into(),
+                message: format!(
+                    "sets the total momentum to zero, which contradicts v_mean = {:?}; give v_mean = [0, 0, 0]",
+                    c.v_mean
+                ),
+            });
+        }
+        if !c.bodies.is_empty() {
+            if c.bodies.len() != c.count {
+                v.issues.push(ValidationIssue {
+                    path: "cloud.bodies".into(),
+                    message: format!(
+                        "lists {} bodies but cloud.count = {}; they must agree",
+                        c.bodies.len(),
+                        c.count
+                    ),
+                });
+            }
+            for (i, body) in c.bodies.iter().enumerate() {
+                // Paths are formatted only for a body with a problem: 10⁶ bodies are
+                // checked in milliseconds, not in the seconds 10⁷ `format!`s take.
+                if body_is_plausible(body) {
+                    continue;
+                }
+                for k in 0..3 {
+                    v.finite(&format!("cloud.bodies.{i}.position.{k}"), body.position[k]);
+                }
+                if let Some(velocity) = body.velocity {
+                    for (k, &x) in velocity.iter().enumerate() {
+                        v.finite(&format!("cloud.bodies.{i}.velocity.{k}"), x);
+                    }
+                    v.below_speed_limit(&format!("cloud.bodies.{i}.velocity"), norm(velocity));
+                }
+                if !(body.primaries >= 1.0 && body.primaries.is_finite()) {
+                    v.push(
+                        &format!("cloud.bodies.{i}.primaries"),
+                        "a finite number ≥ 1",
+                        body.primaries,
+                    );
+                }
+                if let Some(theta) = body.temperature {
+                    v.positive(&format!("cloud.bodies.{i}.temperature"), theta);
+                }
+                if let Some(m) = body.mass {
+                    v.positive(&format!("cloud.bodies.{i}.mass"), m);
+                }
+                if let Some(b) = body.radius {
+                    v.positive(&format!("cloud.bodies.{i}.radius"), b);
+                }
+            }
+        }
+        v.issues
+    }
+}
+
+/// True when none of the per-body checks of [`Cloud::issues`] would complain.
+fn body_is_plausible(b: &PlacedBody) -> bool {
+    let positive = |x: Option<f64>| x.is_none_or(|x| x.is_finite() && x > 0.0);
+    b.position.iter().all(|x| x.is_finite())
+        && b.velocity
+            .is_none_or(|v| v.iter().all(|x| x.is_finite()) && norm(v) <= MAX_SPEED)
+        && b.primaries >= 1.0
+        && b.primaries.is_finite()
+        && positive(b.temperature)
+        && positive(b.mass)
+        && positive(b.radius)
 }
 
 /// One explicitly placed body.

@@ -49,7 +49,7 @@ pub trait SimBuilderCore {
     fn set_impact_outcome_applier(&mut self, add: fn(&mut Schedule)) -> &mut Self;
 }
 
-// Here rather than in schedule.rs, so that the builder does not depend on the wall
+// Here rather than in schedule/, so that the builder does not depend on the wall
 // built around it.
 impl SimBuilderCore for SimBuilder {
     fn add_core_systems<M>(

@@ -19,6 +19,7 @@
 //! - [`field`]: the fields the cores fly exactly (uniform g, linear drag), the `field` section;
 //! - [`carried`]: per-body state an extension adds, carried through merges and
 //!   fragmentations by its rules;
+//! - [`issues`]: the range checks every section's `issues()` is written with;
 //! - [`hooks`]: typed messages at every impact, merge and fragmentation, for
 //!   extensions that subscribe;
 //! - [`params`]: system parameters grouping what a stage reads and writes together
@@ -37,6 +38,7 @@ pub mod core_only;
 pub mod error;
 pub mod field;
 pub mod hooks;
+pub mod issues;
 pub mod laws;
 pub mod observables;
 pub mod params;

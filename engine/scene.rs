@@ -13,6 +13,8 @@ use glam::DVec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use crate::error::ValidationIssue;
+use crate::issues::Issues;
 pub use crate::laws::cooling::CoolingMethod;
 use crate::laws::hardness::hardness;
 
@@ -112,7 +114,40 @@ pub struct Material {
 /// The scene's material (the scenario's `material` section, read as it is) and what it
 /// implies: the hardness law with its overflow rule, the radius of a mass, whether it
 /// cools, its surface energy with `null` read as ∞.
+/// The largest specific heat capacity C accepted [J/(kg·K)]: far above any material
+/// (≈ 1.4e4 for hydrogen), far below where m C or the cooling constants σεA/(m C) leave
+/// f64's range.
+pub const MAX_HEAT_CAPACITY: f64 = 1e100;
+
 impl Material {
+    /// Range problems of the `material` section, by full path.
+    pub fn issues(&self) -> Vec<ValidationIssue> {
+        let mut v = Issues::default();
+        let m = self;
+        v.positive("material.rho", m.rho);
+        v.positive("material.H0", m.H0);
+        // Real heat capacities lie within 1e2…2e4 J/(kg·K); 1e200 validated, then every
+        // temperature went NaN at step 1 (issue 39), so a bound well above any material.
+        v.range_open_closed(
+            "material.C",
+            m.C,
+            0.0,
+            MAX_HEAT_CAPACITY,
+            "0 < C ≤ 1e100 J/(kg·K)",
+        );
+        v.non_negative("material.Q", m.Q);
+        v.non_negative("material.alpha", m.alpha);
+        if let Some(g) = m.gamma {
+            v.positive("material.gamma", g);
+        }
+        v.non_negative("material.mu0", m.mu0);
+        v.range_closed("material.epsilon", m.epsilon, 0.0, 1.0, "0 ≤ ε ≤ 1");
+        v.non_negative("material.hc", m.hc);
+        v.positive("material.theta0", m.theta0);
+        v.non_negative("material.theta_s", m.theta_s);
+        v.issues
+    }
+
     /// Hardness H = H0 · exp(Q / (R θ)) [Pa]; +∞ when the exponent exceeds 700
     /// (docs/model.md §1, "hardness overflow"). Never NaN for θ > 0.
     pub fn hardness(&self, theta: f64) -> f64 {
@@ -146,6 +181,13 @@ pub struct BoxGeometry {
 }
 
 impl BoxGeometry {
+    /// Range problems of the `box` section, by full path.
+    pub fn issues(&self) -> Vec<ValidationIssue> {
+        let mut v = Issues::default();
+        v.positive("box.half_width", self.half_width);
+        v.issues
+    }
+
     /// Side length 2D [m].
     pub fn side(&self) -> f64 {
         2.0 * self.half_width
@@ -190,6 +232,60 @@ pub struct TimeControl {
     /// whenever the scene allows it.
     #[serde(default, skip_serializing_if = "Core::is_auto")]
     pub core: Core,
+}
+
+impl TimeControl {
+    /// Range problems of the `time` section, by full path; the core asked for is checked against `physics` (docs/model.md §4).
+    pub fn issues(&self, physics: &Physics) -> Vec<ValidationIssue> {
+        let mut v = Issues::default();
+        let t = self;
+        v.positive("time.end", t.end);
+        if t.max_steps == 0 {
+            v.push("time.max_steps", "≥ 1", 0.0);
+        }
+        match &t.stepping {
+            Stepping::Adaptive {
+                step_factor,
+                dt_min,
+                dt_max,
+                skin,
+            } => {
+                v.positive("time.stepping.adaptive.step_factor", *step_factor);
+                v.positive("time.stepping.adaptive.dt_min", *dt_min);
+                v.positive("time.stepping.adaptive.dt_max", *dt_max);
+                if dt_min.is_finite() && dt_max.is_finite() && dt_min > dt_max {
+                    v.issues.push(ValidationIssue {
+                        path: "time.stepping.adaptive.dt_min".into(),
+                        message: format!(
+                            "must satisfy dt_min ≤ dt_max (got {dt_min:e} > {dt_max:e})"
+                        ),
+                    });
+                }
+                v.positive("time.stepping.adaptive.skin", *skin);
+                // Every step is at most Δt_max long: at least T/Δt_max steps.
+                v.step_count_fits(
+                    "time.stepping.adaptive.dt_max",
+                    "at least T/Δt_max",
+                    t.end,
+                    *dt_max,
+                    t.max_steps,
+                );
+            }
+            Stepping::Fixed { dt } => {
+                v.positive("time.stepping.fixed.dt", *dt);
+                v.step_count_fits("time.stepping.fixed.dt", "T/Δt", t.end, *dt, t.max_steps);
+            }
+        }
+        if matches!(t.core, Core::Events | Core::EventsBruteForce)
+            && let Some(message) = event_core_needs(self, physics)
+        {
+            v.issues.push(ValidationIssue {
+                path: "time.core".into(),
+                message,
+            });
+        }
+        v.issues
+    }
 }
 
 /// The two ways of advancing a scene (docs/model.md §4).
@@ -341,15 +437,5 @@ pub enum ContactRule {
     NearestNeighbour,
 }
 
-/// The largest speed a scenario may give [m/s]: any |v_mean|, any v_rel component, any
-/// explicit body's |velocity|; a restart snapshot's bodies are held to it too.
-///
-/// 1e5 m/s (100 km/s) is above the fastest natural impacts (meteoroids meet the Earth at
-/// up to ~72 km/s) and hundreds of times the speeds of granular flows and of the papers'
-/// scenes (P04: ~200 m/s; P02: ~4 m/s), so no physical scene is refused. Below it every
-/// energy stays far from overflow (½ v² ~ 1e10 J/kg) and runs of the
-/// shipped size finish: with v̄ = (1e5, 0, 0) m/s and v_rel = 1e5 m/s per component
-/// (release build) P04's best case takes 0.01 s, quick_demo 0.25 s (38 635 impacts).
-/// Above it lie only mistakes: with v_rel = 1e300 m/s the kinetic energies overflow to ∞
-/// and P04's scene was still running after 200 s.
-pub const MAX_SPEED: f64 = 1e5;
+/// The largest speed a scenario may give [m/s] (defined with the range checks).
+pub use crate::issues::MAX_SPEED;

@@ -340,6 +340,7 @@ fn run_plan(args: &RunArgs) -> anyhow::Result<RunPlan> {
     }
     let mut plan = RunPlan::new(scenario)?;
     plan.tables = args.tables.paths(&plan.scenario.output)?;
+    plan.step_tables = args.step_tables.0.clone();
     plan.resume = resume;
     if let Some(path) = &args.summary {
         plan.summary = Some(path.clone());

@@ -197,6 +197,9 @@ pub struct RunArgs {
     /// Time series, size distribution and snapshots, and when they are sampled.
     #[command(flatten)]
     pub tables: crate::output::TableArgs,
+    /// The per-step tables (src/output/step_tables/).
+    #[command(flatten)]
+    pub step_tables: crate::output::step_tables::StepTableArgs,
     /// Override a scenario field: PATH=VALUE, VALUE parsed as JSON (else a string), e.g.
     /// `--set time.end=0.01 --set cloud.size_ratio=0.3` (repeatable; checked as the file is).
     /// A field inside a section the scenario leaves out creates the section

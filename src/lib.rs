@@ -34,6 +34,7 @@ pub mod inverse;
 pub mod kernel;
 pub mod live;
 pub mod memory;
+pub mod observer;
 pub mod output;
 pub mod plugins;
 pub mod record;
@@ -64,7 +65,8 @@ pub use glam;
 /// read-only views of the scene and the run; docs/extending.md, "The plugin API"), the
 /// scenario and the built-in physics.
 pub mod prelude {
+    pub use crate::plugins::NewSimulation;
     pub use crate::scenario::Scenario;
     pub use agglo_engine::prelude::*;
-    pub use agglo_systems::{AddDefaultPlugins, DefaultPlugins};
+    pub use agglo_systems::AddDefaultPlugins;
 }

@@ -7,9 +7,11 @@
 //! (docs/architecture.md, "settings"): `box`, `cloud`, `material`, `time` and `physics`
 //! in the engine, `impact` and `diagnostics` in their plugins, `output` with the
 //! drivers; this file puts them together, loads and checks them. Parsing reports the field path of a
-//! type error or unknown field (via `serde_path_to_error`); [`Scenario::validate`]
-//! then checks every range and names the field and the allowed range. Symbols
-//! follow docs/model.md §1: all values SI.
+//! type error or unknown field (via `serde_path_to_error`); then each section checks
+//! its own ranges (an `issues()` beside its type, naming the field by its path and the
+//! allowed range, as an extension's `PluginSection` does), and [`Scenario::validate`]
+//! is the loop over them plus the checks that need the whole scene (derived constants,
+//! explicit bodies, extension sections). Symbols follow docs/model.md §1: all values SI.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -25,8 +27,8 @@ pub use crate::record::Recording;
 use crate::schedule::Pipeline;
 pub use agglo_engine::cloud::{Cloud, PlacedBody, PrimaryGrain, VelocityDistribution};
 pub use agglo_engine::field::{Drag, Field, Relaxation};
+use agglo_engine::issues::Issues;
 pub use agglo_engine::resources::BoxGeometry as Domain;
-use agglo_engine::scene::event_core_needs;
 pub use agglo_engine::scene::{
     ContactRule, CoolingMethod, Core, ImpactsPerStep, Material, Physics, Stepping, TimeControl,
 };
@@ -250,276 +252,21 @@ impl Scenario {
 
     /// Check every range; all problems are reported together, each with its field path.
     pub fn validate(&self) -> Result<(), ScenarioError> {
-        let mut v = Validator::default();
-        v.positive("box.half_width", self.domain.half_width);
-
-        let c = &self.cloud;
-        // The upper limit is the machine's memory (crate::memory, checked by `run` and
-        // `validate` before anything is allocated), and the event core's 32-bit slots.
-        if c.count == 0 || c.count >= u32::MAX as usize {
-            v.push(
-                "cloud.count",
-                "1 ≤ N < 2^32 and within the machine's memory (left out only with \
-                 cloud.bodies or cloud.from_file)",
-                c.count as f64,
-            );
-        }
-        match (c.radius, c.size_ratio) {
-            (Some(_), Some(_)) => v.issues.push(ValidationIssue {
-                path: "cloud".into(),
-                message: "give exactly one of `radius` [m] or `size_ratio`, not both (over a \
-                          scenario that gives the other: --set cloud.radius=R --set \
-                          cloud.size_ratio=null, or --set cloud.size_ratio=S --set \
-                          cloud.radius=null)"
-                    .into(),
-            }),
-            (None, None) => v.issues.push(ValidationIssue {
-                path: "cloud".into(),
-                message: "give exactly one of `radius` [m] or `size_ratio`".into(),
-            }),
-            (Some(b), None) => {
-                v.positive("cloud.radius", b);
-                if b.is_finite() && b > 0.0 && self.domain.half_width > 0.0 {
-                    let s = self.cloud.size_ratio_of_radius(b, &self.domain);
-                    if s >= 0.9 {
-                        v.issues.push(ValidationIssue {
-                            path: "cloud.radius".into(),
-                            message: format!(
-                                "radius {b:e} m gives size ratio s = {s:.4}; allowed s < 0.9 (volume fraction < 0.38)"
-                            ),
-                        });
-                    }
-                }
-            }
-            (None, Some(s)) => v.range_open("cloud.size_ratio", s, 0.0, 0.9, "0 < s < 0.9"),
-        }
-        for k in 0..3 {
-            v.finite(&format!("cloud.v_mean.{k}"), c.v_mean[k]);
-        }
-        v.below_speed_limit("cloud.v_mean", norm(c.v_mean));
-        let maxwell = c.velocity_distribution == VelocityDistribution::Maxwell;
-        match c.v_rel {
-            Some(v_rel) if maxwell => {
-                let _ = v_rel;
-                v.issues.push(ValidationIssue {
-                    path: "cloud.v_rel".into(),
-                    message: "not used by velocity_distribution = \"maxwell\" (give granular_temperature)".into(),
-                });
-            }
-            Some(v_rel) => {
-                for (k, &x) in v_rel.iter().enumerate() {
-                    v.non_negative(&format!("cloud.v_rel.{k}"), x);
-                    v.below_speed_limit(&format!("cloud.v_rel.{k}"), x);
-                }
-            }
-            None if c.draws_uniform_velocities() => v.issues.push(ValidationIssue {
-                path: "cloud.v_rel".into(),
-                message: "required: velocities are drawn as v̄ + v_rel ∘ λ (a generated cloud, or \
-                          explicit bodies without a velocity); give [vx, vy, vz] amplitudes [m/s], \
-                          or every body its velocity"
-                    .into(),
-            }),
-            None => {}
-        }
-        match (maxwell, c.granular_temperature) {
-            (true, Some(tg)) => {
-                v.non_negative("cloud.granular_temperature", tg);
-                v.below_speed_limit("cloud.granular_temperature (as √T_g)", tg.max(0.0).sqrt());
-            }
-            (true, None) => v.issues.push(ValidationIssue {
-                path: "cloud.granular_temperature".into(),
-                message: "required by velocity_distribution = \"maxwell\": T_g [m²/s²], the variance of each velocity component".into(),
-            }),
-            (false, Some(_)) => v.issues.push(ValidationIssue {
-                path: "cloud.granular_temperature".into(),
-                message: "used only by velocity_distribution = \"maxwell\"".into(),
-            }),
-            (false, None) => {}
-        }
-        if c.remove_drift && c.v_mean != [0.0; 3] {
-            v.issues.push(ValidationIssue {
-                path: "cloud.remove_drift".into(),
-                message: format!(
-                    "sets the total momentum to zero, which contradicts v_mean = {:?}; give v_mean = [0, 0, 0]",
-                    c.v_mean
-                ),
-            });
-        }
-        if !c.bodies.is_empty() {
-            if c.bodies.len() != c.count {
-                v.issues.push(ValidationIssue {
-                    path: "cloud.bodies".into(),
-                    message: format!(
-                        "lists {} bodies but cloud.count = {}; they must agree",
-                        c.bodies.len(),
-                        c.count
-                    ),
-                });
-            }
-            for (i, body) in c.bodies.iter().enumerate() {
-                // Paths are formatted only for a body with a problem: 10⁶ bodies are
-                // checked in milliseconds, not in the seconds 10⁷ `format!`s take.
-                if body_is_plausible(body) {
-                    continue;
-                }
-                for k in 0..3 {
-                    v.finite(&format!("cloud.bodies.{i}.position.{k}"), body.position[k]);
-                }
-                if let Some(velocity) = body.velocity {
-                    for (k, &x) in velocity.iter().enumerate() {
-                        v.finite(&format!("cloud.bodies.{i}.velocity.{k}"), x);
-                    }
-                    v.below_speed_limit(&format!("cloud.bodies.{i}.velocity"), norm(velocity));
-                }
-                if !(body.primaries >= 1.0 && body.primaries.is_finite()) {
-                    v.push(
-                        &format!("cloud.bodies.{i}.primaries"),
-                        "a finite number ≥ 1",
-                        body.primaries,
-                    );
-                }
-                if let Some(theta) = body.temperature {
-                    v.positive(&format!("cloud.bodies.{i}.temperature"), theta);
-                }
-                if let Some(m) = body.mass {
-                    v.positive(&format!("cloud.bodies.{i}.mass"), m);
-                }
-                if let Some(b) = body.radius {
-                    v.positive(&format!("cloud.bodies.{i}.radius"), b);
-                }
-            }
-        }
-
-        let m = &self.material;
-        v.positive("material.rho", m.rho);
-        v.positive("material.H0", m.H0);
-        // Real heat capacities lie within 1e2…2e4 J/(kg·K); 1e200 validated, then every
-        // temperature went NaN at step 1 (issue 39), so a bound well above any material.
-        v.range_open_closed(
-            "material.C",
-            m.C,
-            0.0,
-            MAX_HEAT_CAPACITY,
-            "0 < C ≤ 1e100 J/(kg·K)",
-        );
-        v.non_negative("material.Q", m.Q);
-        v.non_negative("material.alpha", m.alpha);
-        if let Some(g) = m.gamma {
-            v.positive("material.gamma", g);
-        }
-        v.non_negative("material.mu0", m.mu0);
-        v.range_closed("material.epsilon", m.epsilon, 0.0, 1.0, "0 ≤ ε ≤ 1");
-        v.non_negative("material.hc", m.hc);
-        v.positive("material.theta0", m.theta0);
-        v.non_negative("material.theta_s", m.theta_s);
-
-        let i = &self.impact;
-        v.range_closed("impact.af", i.af, 0.0, 1.0, "0 < af ≤ 1");
-        if i.af == 0.0 {
-            v.push("impact.af", "0 < af ≤ 1", i.af);
-        }
-        v.range_closed("impact.a0", i.a0, 0.0, 1.0, "0 ≤ a0 ≤ af");
-        if i.a0.is_finite() && i.af.is_finite() && i.a0 > i.af {
-            v.issues.push(ValidationIssue {
-                path: "impact.a0".into(),
-                message: format!("must satisfy a0 ≤ af (got a0 = {}, af = {})", i.a0, i.af),
-            });
-        }
-        v.positive("impact.beta", i.beta);
-        v.range_open("impact.tol", i.tol, 0.0, 1.0, "0 < tol < 1");
-        if i.max_iterations == 0 {
-            v.push("impact.max_iterations", "≥ 1", 0.0);
-        }
-        if i.solver == SolverKind::ClosedFormPrinted && i.duration != DurationLaw::P04 {
-            v.issues.push(ValidationIssue {
-                path: "impact.solver".into(),
-                message: "closed_form_printed is P04 (4.14), derived for P04's duration law: \
-                          it needs impact.duration = \"p04\""
-                    .into(),
-            });
-        }
-
-        if let Some(RestitutionLaw::Constant(e)) = i.restitution {
-            v.range_closed("impact.restitution.constant", e, 0.0, 1.0, "0 ≤ e ≤ 1");
-        }
-        if let Some(tc) = i.collapse_time {
-            v.non_negative("impact.collapse_time", tc);
-        }
-
-        let t = &self.time;
-        v.positive("time.end", t.end);
-        if t.max_steps == 0 {
-            v.push("time.max_steps", "≥ 1", 0.0);
-        }
-        match &t.stepping {
-            Stepping::Adaptive {
-                step_factor,
-                dt_min,
-                dt_max,
-                skin,
-            } => {
-                v.positive("time.stepping.adaptive.step_factor", *step_factor);
-                v.positive("time.stepping.adaptive.dt_min", *dt_min);
-                v.positive("time.stepping.adaptive.dt_max", *dt_max);
-                if dt_min.is_finite() && dt_max.is_finite() && dt_min > dt_max {
-                    v.issues.push(ValidationIssue {
-                        path: "time.stepping.adaptive.dt_min".into(),
-                        message: format!(
-                            "must satisfy dt_min ≤ dt_max (got {dt_min:e} > {dt_max:e})"
-                        ),
-                    });
-                }
-                v.positive("time.stepping.adaptive.skin", *skin);
-                // Every step is at most Δt_max long: at least T/Δt_max steps.
-                v.step_count_fits(
-                    "time.stepping.adaptive.dt_max",
-                    "at least T/Δt_max",
-                    t.end,
-                    *dt_max,
-                    t.max_steps,
-                );
-            }
-            Stepping::Fixed { dt } => {
-                v.positive("time.stepping.fixed.dt", *dt);
-                v.step_count_fits("time.stepping.fixed.dt", "T/Δt", t.end, *dt, t.max_steps);
-            }
-        }
-        if matches!(t.core, Core::Events | Core::EventsBruteForce)
-            && let Some(message) = event_core_needs(&self.time, &self.physics)
-        {
-            v.issues.push(ValidationIssue {
-                path: "time.core".into(),
-                message,
-            });
-        }
-        if self.diagnostics.every == 0 {
-            v.push("diagnostics.every", "≥ 1", 0.0);
-        }
-        v.positive("diagnostics.tolerance", self.diagnostics.tolerance);
-        let r = &self.output.recording;
-        if let Some(dt) = r.interval {
-            v.positive("output.recording.interval", dt);
-        }
-        v.positive("output.recording.playback_seconds", r.playback_seconds);
-        if let Some(restart) = &self.output.restart {
-            v.positive("output.restart.every", restart.every);
-            // A checkpoint is taken at a step end, at most one per step (the event core
-            // cuts a step to land on each): more checkpoints than the run may take steps
-            // would never finish (1e-300 s once wrote a synced file every step).
-            v.step_count_fits(
-                "output.restart.every",
-                "checkpoints T/every",
-                t.end,
-                restart.every,
-                t.max_steps,
-            );
-        }
-        v.issues.extend(self.field.issues());
-        if let Some(schedule) = &self.output.sampling {
-            for (field, allowed, got) in schedule.problems() {
-                v.push(&format!("output.sampling.{field}"), allowed, got);
-            }
-        }
+        // Each section checks itself (paths and ranges in its own words), then the
+        // checks that need the whole scene.
+        let mut v = Issues {
+            issues: [
+                self.domain.issues(),
+                self.cloud.issues(&self.domain),
+                self.material.issues(),
+                self.impact.issues(),
+                self.time.issues(&self.physics),
+                self.diagnostics.issues(),
+                self.output.issues(&self.time),
+                self.field.issues(),
+            ]
+            .concat(),
+        };
         // On fields known to be in range: the constants derived from them must neither
         // overflow nor vanish (each field in range can still give an infinite box volume,
         // a primary mass of 0, or θ⁴ = ∞ in the radiation law).
@@ -601,18 +348,13 @@ impl Scenario {
 /// for the Stefan–Boltzmann factor: θ ≤ 1e70 K.
 pub const MAX_TEMPERATURE: f64 = 1e70;
 
-/// The largest specific heat capacity C accepted [J/(kg·K)]: far above any material
-/// (≈ 1.4e4 for hydrogen), far below where m C or the cooling constants σεA/(m C) leave
-/// f64's range.
-const MAX_HEAT_CAPACITY: f64 = 1e100;
-
 impl Scenario {
     /// The derived constants of the scene are finite and, where they divide, not zero:
     /// the box volume (2D)³, the primary grain's mass m0 = (4/3)π b0³ ρ with m0² normal
     /// and (N m0)² finite (reduced masses and energies multiply two masses; the whole
     /// cloud can merge into one body), its heat capacity m0 C, and the radiation law's
     /// θ⁴ at the hottest given temperature.
-    fn check_derived(&self, v: &mut Validator) {
+    fn check_derived(&self, v: &mut Issues) {
         let d = self.domain.half_width;
         if !(1e-100..=1e100).contains(&d) {
             v.issues.push(ValidationIssue {
@@ -806,113 +548,6 @@ fn json_kind(first: char) -> Option<&'static str> {
 
 /// The largest speed a scenario may give [m/s] (defined with the engine's scene types).
 pub use agglo_engine::scene::MAX_SPEED;
-
-/// True when none of the per-body checks of [`Scenario::validate`] would complain.
-fn body_is_plausible(b: &PlacedBody) -> bool {
-    let positive = |x: Option<f64>| x.is_none_or(|x| x.is_finite() && x > 0.0);
-    b.position.iter().all(|x| x.is_finite())
-        && b.velocity
-            .is_none_or(|v| v.iter().all(|x| x.is_finite()) && norm(v) <= MAX_SPEED)
-        && b.primaries >= 1.0
-        && b.primaries.is_finite()
-        && positive(b.temperature)
-        && positive(b.mass)
-        && positive(b.radius)
-}
-
-/// Length of a 3-vector [same unit as its components].
-/// |x|, without overflowing for components up to f64::MAX / √3 (the sum of squares of
-/// components ≳ 1.34e154 is ∞; hypot scales first).
-fn norm(x: [f64; 3]) -> f64 {
-    x[0].hypot(x[1]).hypot(x[2])
-}
-
-/// Steps a run of length `end` [s] needs at steps of at most `dt` [s]: ⌈T/Δt⌉, less a
-/// relative 1e-12 (the clock lands on T when a step ends that close to it).
-fn planned_steps(end: f64, dt: f64) -> f64 {
-    (end / dt * (1.0 - 1e-12)).ceil()
-}
-
-/// Collects range violations with their field paths.
-#[derive(Default)]
-struct Validator {
-    issues: Vec<ValidationIssue>,
-}
-
-impl Validator {
-    fn push(&mut self, path: &str, allowed: &str, got: f64) {
-        self.issues.push(ValidationIssue {
-            path: path.into(),
-            message: format!(
-                "allowed {allowed} (got {})",
-                agglo_engine::readable::exact(got)
-            ),
-        });
-    }
-    fn finite(&mut self, path: &str, x: f64) {
-        if !x.is_finite() {
-            self.push(path, "a finite number", x);
-        }
-    }
-    fn positive(&mut self, path: &str, x: f64) {
-        if !(x.is_finite() && x > 0.0) {
-            self.push(path, "a finite number > 0", x);
-        }
-    }
-    fn non_negative(&mut self, path: &str, x: f64) {
-        if !(x.is_finite() && x >= 0.0) {
-            self.push(path, "a finite number ≥ 0", x);
-        }
-    }
-    fn range_open(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
-        if !(x > lo && x < hi) {
-            self.push(path, allowed, x);
-        }
-    }
-    fn range_open_closed(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
-        if !(x > lo && x <= hi) {
-            self.push(path, allowed, x);
-        }
-    }
-    fn range_closed(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
-        if !(x >= lo && x <= hi) {
-            self.push(path, allowed, x);
-        }
-    }
-    /// A speed [m/s] above [`MAX_SPEED`]. ∞ counts (finite components whose norm
-    /// overflows, e.g. v̄ = (1e200, 0, 0), validated and then hung the run); NaN is
-    /// reported by the finiteness checks.
-    fn below_speed_limit(&mut self, path: &str, speed: f64) {
-        if speed > MAX_SPEED {
-            self.issues.push(ValidationIssue {
-                path: path.into(),
-                message: format!(
-                    "speed {speed:.4e} m/s is not physical; allowed ≤ {MAX_SPEED:e} m/s \
-                     (100 km/s, above the fastest natural impacts)"
-                ),
-            });
-        }
-    }
-    /// A run of `end` [s] in steps of at most `dt` [s] that needs more than `max_steps`
-    /// steps can never finish. Non-positive or non-finite values are reported elsewhere.
-    fn step_count_fits(&mut self, path: &str, count: &str, end: f64, dt: f64, max_steps: u64) {
-        if !(end.is_finite() && end > 0.0 && dt.is_finite() && dt > 0.0) {
-            return;
-        }
-        let planned = planned_steps(end, dt);
-        if planned > max_steps as f64 {
-            self.issues.push(ValidationIssue {
-                path: path.into(),
-                message: format!(
-                    "{count} = {end:e} s / {dt:e} s = {planned:.3e} planned steps exceed \
-                     time.max_steps = {max_steps}; allowed Δt ≥ time.end / time.max_steps \
-                     = {:e} s (or raise time.max_steps)",
-                    end / max_steps as f64
-                ),
-            });
-        }
-    }
-}
 
 impl Scene for Scenario {
     fn name(&self) -> &str {

@@ -18,6 +18,8 @@ use bevy_ecs::query::QueryData;
 use agglo_engine::core_only::SimBuilderCore;
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
+use agglo_engine::error::ValidationIssue;
+use agglo_engine::issues::Issues;
 use agglo_engine::params::SceneConstants;
 use agglo_engine::scene::Material;
 use bevy_ecs::system::SystemParam;
@@ -55,6 +57,18 @@ pub struct Diagnostics {
     // (`tests/suite/energy_ledgers.rs`).
     #[serde(default = "default_check_tol")]
     pub tolerance: f64,
+}
+
+impl Diagnostics {
+    /// Range problems of the `diagnostics` section, by full path.
+    pub fn issues(&self) -> Vec<ValidationIssue> {
+        let mut v = Issues::default();
+        if self.every == 0 {
+            v.push("diagnostics.every", "≥ 1", 0.0);
+        }
+        v.positive("diagnostics.tolerance", self.tolerance);
+        v.issues
+    }
 }
 
 fn default_check_every() -> u64 {

@@ -264,6 +264,12 @@ impl SimPlugin for FragmentPlugin {
     }
 }
 
+/// True when the plugin schedules fragmentation for a scene of this material and
+/// physics (an output that bins sizes asks it: fragments break primaries into parts).
+pub fn scene_fragments(material: &Material, physics: &Physics) -> bool {
+    fragmentation_off(material, physics).is_none()
+}
+
 /// Why the scene has no fragmentation, if it has none.
 fn fragmentation_off(material: &Material, physics: &Physics) -> Option<&'static str> {
     if material.surface_energy() == f64::INFINITY {

@@ -35,9 +35,6 @@ const SIGNAL_CHECK: Duration = Duration::from_millis(50);
 /// Steps between two looks at the wall clock.
 const CLOCK_CHECK_STEPS: u64 = 16;
 
-/// The tables a run can write, by name.
-const TABLES: [&str; 4] = ["series", "sizes", "snapshots", "collisions"];
-
 /// Where a simulation is.
 enum State {
     /// Built, perhaps stepped; outputs open.
@@ -61,8 +58,9 @@ struct Inner {
     state: State,
     /// True once outputs were chosen (they cannot be chosen twice).
     has_outputs: bool,
-    /// The plan's outputs (kept to rebuild the run when a hook is added).
-    plan: PlanOutputs,
+    /// The run's plan with the outputs chosen (kept to rebuild the run when a hook is
+    /// added): `agglo::run`'s own type, so an output it gains is one here too.
+    plan: RunPlan,
     /// The Python hooks, called in batches (hooks.rs).
     hooks: Vec<crate::hooks::Hook>,
     /// The snapshot this simulation was unpickled from (kept to rebuild the run).
@@ -102,19 +100,7 @@ impl ClockMirror {
     }
 }
 
-/// The outputs of the plan, resolved (tables kept in memory have their paths).
-#[derive(Default, Clone)]
-struct PlanOutputs {
-    tables: agglo::output::TablePaths,
-    record: Option<PathBuf>,
-    summary: Option<PathBuf>,
-    final_state: Option<PathBuf>,
-    live: Option<agglo::live::LiveOptions>,
-    progress: bool,
-    command_line: String,
-}
-
-/// The outputs asked of `run()`.
+/// The arguments of `run()` that choose outputs, as Python gave them.
 #[derive(Default)]
 struct Outputs {
     tables: BTreeMap<String, Option<PathBuf>>,
@@ -148,18 +134,11 @@ impl Simulation {
         carry: Vec<crate::carry::Spec>,
     ) -> PyResult<Self> {
         let plan = RunPlan::new(scenario.clone()).map_err(scenario_error)?;
-        let outputs = PlanOutputs {
-            tables: plan.tables,
-            record: plan.recording,
-            summary: plan.summary,
-            final_state: plan.final_state,
-            ..Default::default()
-        };
         let mut inner = Inner {
             scenario,
             state: State::Switching,
             has_outputs: false,
-            plan: outputs,
+            plan,
             hooks: Vec::new(),
             resume,
             stepped: false,
@@ -216,11 +195,12 @@ impl Inner {
             .unwrap_or_else(|| "python: agglo.Simulation.run".into());
         // Kept only once every output is accepted (an error leaves the simulation as it was).
         let mut memory_tables = Vec::new();
+        let names = RunPlan::table_names();
         for (name, path) in outputs.tables {
-            if !TABLES.contains(&name.as_str()) {
+            if !names.contains(&name.as_str()) {
                 return Err(scenario_error(format!(
                     "run: tables: no table `{name}` (allowed: {})",
-                    TABLES.join(", ")
+                    names.join(", ")
                 )));
             }
             let path = match path {
@@ -234,13 +214,8 @@ impl Inner {
                     dir.join(format!("{name}.parquet"))
                 }
             };
-            let slot = match name.as_str() {
-                "series" => &mut plan.tables.series,
-                "sizes" => &mut plan.tables.sizes,
-                "snapshots" => &mut plan.tables.snapshots,
-                _ => &mut plan.tables.collisions,
-            };
-            *slot = Some(path);
+            plan.set_table(&name, path)
+                .map_err(|e| scenario_error(format!("run: {e}")))?;
         }
         if let Some(json) = outputs.sampling {
             let schedule: SampleSchedule = serde_json::from_str(&json).map_err(|e| {
@@ -249,15 +224,11 @@ impl Inner {
                      {{\"log\": {{\"per_decade\": K}}}} or {{\"steps\": {{\"every\": K}}}})"
                 ))
             })?;
-            if let Some((field, allowed, got)) = schedule.problems().first() {
-                return Err(scenario_error(format!(
-                    "run: sampling: {field}: allowed {allowed} (got {got})"
-                )));
-            }
-            plan.tables.sampling = Some(schedule);
+            plan.set_sampling(schedule)
+                .map_err(|e| scenario_error(format!("run: {e}")))?;
         }
         if let Some(path) = outputs.record {
-            plan.record = Some(path);
+            plan.recording = Some(path);
         }
         if let Some(path) = outputs.summary {
             plan.summary = Some(path);
@@ -303,21 +274,7 @@ impl Inner {
     /// Build the run anew from the scenario, the outputs and the hooks' subscriptions
     /// (before the first step only: the run is deterministic, so nothing changes).
     fn rebuild(&mut self) -> PyResult<()> {
-        let o = self.plan.clone();
-        let mut plan = RunPlan::new(self.scenario.clone()).map_err(scenario_error)?;
-        plan.tables = o.tables;
-        plan.progress = o.progress;
-        plan.command_line = o.command_line;
-        plan.live = o.live;
-        if o.record.is_some() {
-            plan.recording = o.record;
-        }
-        if o.summary.is_some() {
-            plan.summary = o.summary;
-        }
-        if o.final_state.is_some() {
-            plan.final_state = o.final_state;
-        }
+        let mut plan = self.plan.clone();
         plan.resume = self.resume.clone().map(|snapshot| agglo::run::Resume {
             file: PathBuf::from("<pickle>"),
             snapshot,

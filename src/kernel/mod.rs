@@ -80,6 +80,36 @@ pub fn simulation(scenario: &Scenario) -> Result<Simulation, crate::error::SimEr
     builder.build()
 }
 
+/// Why [`accumulate`] stopped short of the end of the run.
+#[derive(Debug)]
+pub enum Accumulating {
+    /// The accumulator refused (begun twice, not begun, a step it cannot read).
+    Kernel(KernelError),
+    /// The run failed.
+    Run(crate::error::SimError),
+}
+
+/// Step `sim` to its end time feeding `acc` after every step, as one run of its
+/// ensemble ([`Accumulator::begin`] to [`Accumulator::end_run`]): the loop `agglo
+/// kernel` and the subgrid's boxes share. `sim` must collect what the accumulator reads
+/// ([`simulation`]).
+pub fn accumulate(sim: &mut Simulation, acc: &mut Accumulator) -> Result<(), Accumulating> {
+    acc.begin(sim).map_err(Accumulating::Kernel)?;
+    let mut failed = None;
+    let outcome = sim.run_with(|s| match acc.observe(s) {
+        Ok(()) => ControlFlow::Continue(()),
+        Err(e) => {
+            failed = Some(e);
+            ControlFlow::Break(())
+        }
+    });
+    if let Some(e) = failed {
+        return Err(Accumulating::Kernel(e));
+    }
+    outcome.map_err(Accumulating::Run)?;
+    acc.end_run(sim).map_err(Accumulating::Kernel)
+}
+
 /// Run `scenario` with `seed` to its end, accumulating on `grid`.
 pub fn measure_one(
     scenario: &Scenario,
@@ -93,21 +123,13 @@ pub fn measure_one(
     sampling.check().map_err(anyhow::Error::msg)?;
     let mut sim = simulation(&scenario).context("setting up the scene")?;
     let mut acc = Accumulator::new(grid.clone(), window, sampling);
-    acc.begin(&sim)?;
-    let mut failed = None;
-    let outcome = sim.run_with(|s| match acc.observe(s) {
-        Ok(()) => ControlFlow::Continue(()),
-        Err(e) => {
-            failed = Some(e);
-            ControlFlow::Break(())
+    match accumulate(&mut sim, &mut acc) {
+        Ok(()) => Ok(acc),
+        Err(Accumulating::Kernel(e)) => Err(e.into()),
+        Err(Accumulating::Run(e)) => {
+            Err(anyhow::Error::new(e).context(format!("running seed {seed}")))
         }
-    });
-    if let Some(e) = failed {
-        return Err(e.into());
     }
-    outcome.with_context(|| format!("running seed {seed}"))?;
-    acc.end_run(&sim)?;
-    Ok(acc)
 }
 
 /// Run `scenario` once per seed on `workers` and pool the runs in seed order (so the

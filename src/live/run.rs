@@ -23,6 +23,7 @@ use crate::components::BodyState;
 use crate::error::SimError;
 use crate::inverse::splitmix64;
 use crate::observables::Summary;
+use crate::observer::{Ending, Observer, Written};
 use crate::record::messages::{self, Warnings};
 use crate::record::{
     BOX_TOPIC, ColourScale, EVENTS_TOPIC, FRAME_ID, PARTICLES_TOPIC, STATS_TOPIC, Sampling, Stats,
@@ -520,6 +521,18 @@ impl Publisher {
             }],
             ..Default::default()
         }
+    }
+}
+
+impl Observer for LiveRun {
+    fn observe(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        LiveRun::observe(self, sim);
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, end: &Ending<'_>, _: &mut Written) -> anyhow::Result<()> {
+        LiveRun::finish(*self, end.sim, end.outcome);
+        Ok(())
     }
 }
 

@@ -15,6 +15,7 @@ pub mod schema;
 pub mod series;
 pub mod sizes;
 pub mod snapshots;
+pub mod step_tables;
 pub mod table;
 
 use std::io::Write;
@@ -28,8 +29,10 @@ use anyhow::Context;
 
 use crate::carried::CarriedColumns;
 use crate::components::BodyState;
+use crate::error::ValidationIssue;
 use crate::observables::Summary;
 use crate::record::Recording;
+use agglo_engine::issues::Issues;
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -148,6 +151,35 @@ fn is_auto(bins: &SizeBins) -> bool {
 }
 
 impl Output {
+    /// Range problems of the `output` section, by full path (checkpoints are counted against the `time` section's step cap).
+    pub fn issues(&self, time: &crate::scene::TimeControl) -> Vec<ValidationIssue> {
+        let mut v = Issues::default();
+        let r = &self.recording;
+        if let Some(dt) = r.interval {
+            v.positive("output.recording.interval", dt);
+        }
+        v.positive("output.recording.playback_seconds", r.playback_seconds);
+        if let Some(restart) = &self.restart {
+            v.positive("output.restart.every", restart.every);
+            // A checkpoint is taken at a step end, at most one per step (the event core
+            // cuts a step to land on each): more checkpoints than the run may take steps
+            // would never finish (1e-300 s once wrote a synced file every step).
+            v.step_count_fits(
+                "output.restart.every",
+                "checkpoints T/every",
+                time.end,
+                restart.every,
+                time.max_steps,
+            );
+        }
+        if let Some(schedule) = &self.sampling {
+            for (field, allowed, got) in schedule.problems() {
+                v.push(&format!("output.sampling.{field}"), allowed, got);
+            }
+        }
+        v.issues
+    }
+
     /// This section with every file path cleared (summary, final state, recording,
     /// tables, checkpoints), keeping what says how the run is sampled and recorded: for
     /// runs that must not write the files a scenario names (an ensemble's, a copy's).

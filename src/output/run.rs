@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::components::{Mass, Particle, ParticleId, Temperature};
+use crate::observer::{Ending, Observer, Written};
 use crate::resources::LazyState;
 use crate::scenario::Scenario;
 use crate::schedule::Simulation;
@@ -108,7 +109,10 @@ impl RunTables {
         let snapshots = create(&paths.snapshots, "snapshots", &snapshot_columns)?;
         let sizes = match create(&paths.sizes, "sizes", SIZES_COLUMNS)? {
             Some(table) => {
-                let can_fragment = sim.systems().iter().any(|s| s.contains("fragment"));
+                let can_fragment = agglo_systems::fragment::scene_fragments(
+                    &sim.material(),
+                    sim.world().resource::<crate::scene::Physics>(),
+                );
                 let bins = scenario
                     .output
                     .size_bins
@@ -231,6 +235,16 @@ impl RunTables {
         self.sampler.taken(t);
         self.samples += 1;
         Ok(())
+    }
+}
+
+impl Observer for RunTables {
+    fn observe(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        RunTables::observe(self, sim)
+    }
+
+    fn finish(self: Box<Self>, end: &Ending<'_>, _: &mut Written) -> anyhow::Result<()> {
+        RunTables::finish(*self, end.sim).map(|_| ())
     }
 }
 

@@ -222,7 +222,7 @@ pub const SUMMARY_KEYS: &[Key] = &[
 
 /// The tables, each with the flag that writes it and its columns.
 pub fn tables() -> Vec<(&'static str, &'static str, &'static [Column])> {
-    vec![
+    [
         (
             "--series",
             "one row per sample (output.sampling)",
@@ -243,12 +243,21 @@ pub fn tables() -> Vec<(&'static str, &'static str, &'static [Column])> {
             "one row per impact, in the order the engine resolved them",
             COLLISION_COLUMNS,
         ),
+    ]
+    .into_iter()
+    .chain(
+        super::step_tables::STEP_TABLES
+            .iter()
+            .map(|t| (t.flag, t.rows, t.columns)),
+    )
+    .chain([
         (
             "--final-state",
             "one row per body at the end, sorted by id (CSV only); then one column per quantity an extension carries, named by it, empty where a body has none",
             &SNAPSHOT_COLUMNS[1..],
         ),
-    ]
+    ])
+    .collect()
 }
 
 /// The whole reference as Markdown (docs/outputs.md).

@@ -37,6 +37,23 @@ pub fn simulation(scenario: &Scenario) -> Result<Simulation, SimError> {
     builder(scenario)?.build()
 }
 
+/// `Simulation::new(&scenario)` from `agglo::prelude`: the scene with the built-in
+/// physics and every registered extension, as every driver builds it ([`simulation`]).
+/// (`agglo_systems::DefaultPlugins::new` builds the built-ins alone, for programs that
+/// use the engine without this package.)
+pub trait NewSimulation {
+    /// The scenario's simulation with the built-in physics and the registered extensions.
+    fn new(scenario: &Scenario) -> Result<Self, SimError>
+    where
+        Self: Sized;
+}
+
+impl NewSimulation for Simulation {
+    fn new(scenario: &Scenario) -> Result<Self, SimError> {
+        simulation(scenario)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,6 +9,10 @@
 
 use std::time::{Duration, Instant};
 
+use crate::observer::{Ending, Observer, Written};
+use crate::scenario::{Scenario, Stepping};
+use crate::schedule::Simulation;
+
 /// Steps per window.
 pub const WINDOW_STEPS: u64 = 1000;
 /// Fraction of clamped steps in a window above which it is reported.
@@ -64,6 +68,84 @@ impl ClampWatch {
         } else {
             None
         }
+    }
+}
+
+/// The warnings of a run on the stepped core with adaptive steps, printed on stderr
+/// (above the progress line, when there is one).
+pub struct ClampWarnings {
+    watch: ClampWatch,
+    /// Δt_min [s].
+    dt_min: f64,
+    /// T [s] and `time.max_steps`, quoted by the warning.
+    end: f64,
+    max_steps: u64,
+    /// The progress line to print above.
+    bar: Option<indicatif::ProgressBar>,
+}
+
+impl ClampWarnings {
+    /// The warnings of `sim`'s run, if its scene can clamp (see [`clamping_floor`]).
+    pub fn new(
+        scenario: &Scenario,
+        sim: &Simulation,
+        bar: Option<indicatif::ProgressBar>,
+    ) -> Option<Self> {
+        let dt_min = clamping_floor(scenario)?;
+        Some(Self {
+            watch: ClampWatch::new(sim.clock().step, sim.counters().clamped_steps),
+            dt_min,
+            end: scenario.time.end,
+            max_steps: scenario.time.max_steps,
+            bar,
+        })
+    }
+
+    /// The warning printed (to stderr, even when quiet: it is about a run going wrong)
+    /// when most steps of a window were clamped.
+    fn warning(&self, t: f64, window: ClampedWindow) -> String {
+        format!(
+            "warning: at t = {t:.4e} s, {} of the last {} steps were clamped at Δt_min = {:e} s \
+             although a contact was due sooner: contacts are resolved late, and the run advances \
+             about Δt_min per step (T/Δt_min = {:.1e} steps, time.max_steps = {}); \
+             lower time.stepping.adaptive.dt_min",
+            window.clamped,
+            window.steps,
+            self.dt_min,
+            self.end / self.dt_min,
+            self.max_steps
+        )
+    }
+}
+
+impl Observer for ClampWarnings {
+    fn observe(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        let c = sim.clock();
+        let now = Instant::now();
+        if let Some(window) = self
+            .watch
+            .observe(c.step, sim.counters().clamped_steps, now)
+        {
+            let warning = self.warning(c.time, window);
+            match &self.bar {
+                Some(bar) => bar.suspend(|| eprintln!("{warning}")),
+                None => eprintln!("{warning}"),
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, _: &Ending<'_>, _: &mut Written) -> anyhow::Result<()> {
+        Ok(())
+    }
+}
+
+/// Δt_min, if the scene can clamp at it: only the stepped core with adaptive steps does
+/// (the event core lands on every contact; fixed steps have no lower bound).
+fn clamping_floor(s: &Scenario) -> Option<f64> {
+    match s.time.stepping {
+        Stepping::Adaptive { dt_min, .. } if !s.uses_event_core() => Some(dt_min),
+        _ => None,
     }
 }
 

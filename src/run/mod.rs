@@ -22,9 +22,13 @@
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
+mod checkpoints;
 pub mod clamp_watch;
+mod end_files;
 pub mod progress;
+mod recording;
 pub mod signals;
+mod test_switches;
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -37,24 +41,29 @@ use crate::error::SimError;
 use crate::live::run::LiveRun;
 use crate::live::{LiveOptions, Server, check_options};
 use crate::observables::Summary;
-use crate::output::{RunTables, TableArgs, TablePaths, write_final_state_with, write_summary};
+pub use crate::observer::CheckpointsWritten;
+use crate::observer::{Ending, Observer, Written};
+use crate::output::step_tables::{self, StepTable};
+use crate::output::{RunTables, SampleSchedule, TableArgs, TablePaths};
 use crate::record::{Recorder, RecordingReport};
 use crate::restart::RestartSnapshot;
-use crate::scenario::{Scenario, Stepping};
+use crate::scenario::Scenario;
 use crate::schedule::Simulation;
-use clamp_watch::{ClampWatch, ClampedWindow};
+use clamp_watch::ClampWarnings;
 use progress::Progress;
 
 /// A run to make: the scenario and where each output goes. [`RunPlan::new`] takes the
 /// paths from the scenario's `output` section; a front end overrides them (the flags of
 /// `agglo run`, the arguments of `Simulation.run` in Python).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct RunPlan {
     pub scenario: Scenario,
     /// Continue a stopped run from this checkpoint (`agglo run --resume`).
     pub resume: Option<Resume>,
     /// The tables sampled during the run and their schedule.
     pub tables: TablePaths,
+    /// The per-step tables asked for ([`crate::output::step_tables`]) and their files.
+    pub step_tables: Vec<(&'static StepTable, PathBuf)>,
     /// The observables and counters as JSON, at the end.
     pub summary: Option<PathBuf>,
     /// One CSV row per body, at the end.
@@ -74,7 +83,7 @@ pub struct RunPlan {
 }
 
 /// A checkpoint to continue from, and the file it was read from.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Resume {
     pub file: PathBuf,
     pub snapshot: RestartSnapshot,
@@ -96,8 +105,50 @@ impl RunPlan {
             progress: false,
             resume: None,
             tables,
+            step_tables: Vec::new(),
             scenario,
         })
+    }
+
+    /// The names of every table a run can write, as [`RunPlan::set_table`] takes them
+    /// (Python's `run(tables=…)`): the sampled ones, the collision log, then the
+    /// registered per-step tables.
+    pub fn table_names() -> Vec<&'static str> {
+        let mut names = vec!["series", "sizes", "snapshots", "collisions"];
+        names.extend(step_tables::STEP_TABLES.iter().map(|t| t.name));
+        names
+    }
+
+    /// Write the table `name` (one of [`RunPlan::table_names`]) to `path`.
+    pub fn set_table(&mut self, name: &str, path: PathBuf) -> anyhow::Result<()> {
+        let slot = match name {
+            "series" => &mut self.tables.series,
+            "sizes" => &mut self.tables.sizes,
+            "snapshots" => &mut self.tables.snapshots,
+            "collisions" => &mut self.tables.collisions,
+            _ => {
+                let Some(table) = step_tables::find(name) else {
+                    anyhow::bail!(
+                        "tables: no table `{name}` (allowed: {})",
+                        Self::table_names().join(", ")
+                    );
+                };
+                self.step_tables.retain(|(t, _)| t.name != name);
+                self.step_tables.push((table, path));
+                return Ok(());
+            }
+        };
+        *slot = Some(path);
+        Ok(())
+    }
+
+    /// Sample the tables on `schedule`, checked as a scenario's `output.sampling` is.
+    pub fn set_sampling(&mut self, schedule: SampleSchedule) -> anyhow::Result<()> {
+        if let Some((field, allowed, got)) = schedule.problems().first() {
+            anyhow::bail!("sampling: {field}: allowed {allowed} (got {got})");
+        }
+        self.tables.sampling = Some(schedule);
+        Ok(())
     }
 
     /// Every output of the plan, with the flag that names it: the recording and the
@@ -117,6 +168,7 @@ impl RunPlan {
         .into_iter()
         .filter_map(|(flag, path)| path.clone().map(|p| (flag, p)))
         .collect();
+        out.extend(self.step_tables.iter().map(|(t, p)| (t.flag, p.clone())));
         if let Some(mcap) = &self.recording {
             out.push((
                 "the recording's layout (beside --out)",
@@ -179,18 +231,6 @@ impl RunPlan {
     }
 }
 
-/// Checkpoints written during a run.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct CheckpointsWritten {
-    pub count: u64,
-    /// Size of the last [bytes].
-    pub bytes: u64,
-    /// Simulated time of the last [s].
-    pub time: f64,
-    /// Wall-clock seconds spent writing them.
-    pub writing_seconds: f64,
-}
-
 /// How far [`Run::advance`] goes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Until {
@@ -209,26 +249,10 @@ pub struct Run {
     sim: Simulation,
     stop: Arc<AtomicBool>,
     layout: Option<PathBuf>,
-    summary_path: Option<PathBuf>,
-    final_path: Option<PathBuf>,
-    /// What is fed after each step.
-    outputs: Outputs,
-}
-
-/// The outputs of a [`Run`] fed after each step.
-struct Outputs {
-    recorder: Option<Recorder>,
-    tables: Option<RunTables>,
-    live: Option<LiveRun>,
-    restart_file: Option<PathBuf>,
-    checkpoints: CheckpointsWritten,
-    clamp_watch: Option<(ClampWatch, f64)>,
-    progress: Option<Progress>,
+    /// Every output, fed after each step and finished in this order.
+    observers: Vec<Box<dyn Observer>>,
     /// The first error of an output (the run stops at it; it is reported at the end).
     output_error: Option<anyhow::Error>,
-    /// For the restart tests: SIGKILL this process after the given step
-    /// (`AGGLO_TEST_SIGKILL_AFTER_STEP`), at a point the test chooses exactly.
-    kill_after: Option<u64>,
 }
 
 /// What a finished run leaves: the simulation, its summary and what was written.
@@ -285,62 +309,27 @@ impl Run {
             .tables
             .builder(scenario)
             .context("setting up the scene")?;
+        for (table, _) in &plan.step_tables {
+            (table.subscribe)(&mut builder);
+        }
         customise(&mut builder)?;
         let mut sim = builder.build().context("setting up the scene")?;
         if let Some(resume) = &plan.resume {
             sim.resume(&resume.snapshot)
                 .with_context(|| format!("resuming from {}", resume.file.display()))?;
         }
-        let restart_file = plan.restart_file();
         let layout = match &plan.recording {
             Some(path) => Some(write_layout_beside(path, scenario)?),
             None => None,
         };
-        // Created after the caller's stop handlers: once the file exists, a stop
-        // finalises it.
-        let recorder = match &plan.recording {
-            Some(path) => Some(Recorder::create(path, &sim, &plan.command_line)?),
-            None => None,
-        };
-        let tables = RunTables::open(&plan.tables, scenario, &sim)?;
-        let beside = plan.recording.as_deref().or(plan.summary.as_deref());
-        let live = match live_server {
-            Some((server, options)) => {
-                Some(start_live(server, &options, &sim, scenario, beside, &stop)?)
-            }
-            None => None,
-        };
-        let clamp_watch = clamping_floor(scenario).map(|dt_min| {
-            let c = sim.clock();
-            (
-                ClampWatch::new(c.step, sim.counters().clamped_steps),
-                dt_min,
-            )
-        });
-        let progress = plan
-            .progress
-            .then(|| Progress::new(scenario.time.end, scenario.uses_event_core()));
-        let kill_after = std::env::var("AGGLO_TEST_SIGKILL_AFTER_STEP")
-            .ok()
-            .and_then(|v| v.parse::<u64>().ok());
+        let observers = open_observers(&plan, &sim, live_server, &stop)?;
         Ok(Self {
             scenario: plan.scenario,
             sim,
             stop,
             layout,
-            summary_path: plan.summary,
-            final_path: plan.final_state,
-            outputs: Outputs {
-                recorder,
-                tables,
-                live,
-                restart_file,
-                checkpoints: CheckpointsWritten::default(),
-                clamp_watch,
-                progress,
-                output_error: None,
-                kill_after,
-            },
+            observers,
+            output_error: None,
         })
     }
 
@@ -375,7 +364,7 @@ impl Run {
         until: Until,
         observe: &mut dyn FnMut(&Simulation) -> ControlFlow<()>,
     ) -> Result<(), SimError> {
-        if self.outputs.output_error.is_some() {
+        if self.output_error.is_some() {
             let c = self.sim.clock();
             return Err(SimError::Interrupted {
                 step: c.step,
@@ -389,28 +378,22 @@ impl Run {
             Until::Steps(n) => s.clock().step - first_step >= n,
         };
         let Self {
-            scenario,
             sim,
             stop,
-            outputs,
+            observers,
+            output_error,
             ..
         } = self;
         let _advancing = signals::Advancing::enter();
-        let stuck_at = std::env::var("AGGLO_TEST_STUCK_AT_STEP")
-            .ok()
-            .and_then(|v| v.parse::<u64>().ok());
         sim.run_until(done, |s| {
-            if stuck_at == Some(s.clock().step) {
-                // A step that never ends, for the test of the stop watchdog (signals.rs).
-                loop {
-                    std::thread::sleep(std::time::Duration::from_millis(50));
+            signals::step_done();
+            for o in observers.iter_mut() {
+                if let Err(e) = o.observe(s) {
+                    *output_error = Some(e);
+                    return ControlFlow::Break(());
                 }
             }
-            signals::step_done();
-            if outputs.observe(scenario, s).is_break() || observe(s).is_break() {
-                return ControlFlow::Break(());
-            }
-            if stop.load(Ordering::SeqCst) {
+            if observe(s).is_break() || stop.load(Ordering::SeqCst) {
                 ControlFlow::Break(())
             } else {
                 ControlFlow::Continue(())
@@ -426,122 +409,94 @@ impl Run {
     /// Finalise every output whatever `outcome` (the last [`Run::advance`]'s result) was:
     /// the recording gets its last state, outcome and summary section, the live view its
     /// last frame, the tables their last sample; then the final state and summary files.
-    pub fn finish(mut self, outcome: &Result<(), SimError>) -> RunEnd {
-        if let Some(bar) = self.outputs.progress.take() {
-            bar.finish();
-        }
-        let mut error = self.outputs.output_error.take();
-        let recording = match self.outputs.recorder.take() {
-            Some(r) => {
-                let path = r.path().to_path_buf();
-                match r.finish(&self.sim, outcome) {
-                    Ok(report) => Some((path, report)),
-                    Err(e) => {
-                        error.get_or_insert(e);
-                        None
-                    }
-                }
-            }
-            None => None,
-        };
-        // The live view last: with a client connected it may keep serving the final
-        // state for a while, and every file must be written before that wait.
-        let live = self.outputs.live.take();
-        // A table whose writer failed during the run fails again here: the first error
-        // is the one told.
-        if let Some(t) = self.outputs.tables.take()
-            && let Err(e) = t.finish(&self.sim)
-        {
-            error.get_or_insert(e);
-        }
+    pub fn finish(self, outcome: &Result<(), SimError>) -> RunEnd {
+        let mut error = self.output_error;
         let bodies = self.sim.bodies();
         let summary = Summary::new(&self.sim, &bodies);
-        if let Some(path) = &self.final_path
-            && let Err(e) = write_final_state_with(path, &bodies, &self.sim.carried())
-        {
-            error.get_or_insert(e);
-        }
-        if let Some(path) = &self.summary_path
-            && let Err(e) = write_summary(path, &summary)
-        {
-            error.get_or_insert(e);
-        }
-        if let Some(l) = live {
-            l.finish(&self.sim, outcome);
+        let end = Ending {
+            sim: &self.sim,
+            outcome,
+            bodies: &bodies,
+            summary: &summary,
+        };
+        let mut written = Written::default();
+        // A table whose writer failed during the run fails again here: the first error
+        // is the one told.
+        for o in self.observers {
+            if let Err(e) = o.finish(&end, &mut written) {
+                error.get_or_insert(e);
+            }
         }
         RunEnd {
             summary,
-            recording,
+            recording: written.recording,
             layout: self.layout,
-            checkpoints: self
-                .outputs
-                .restart_file
-                .map(|p| (p, self.outputs.checkpoints)),
+            checkpoints: written.checkpoints,
             output_error: error,
             sim: self.sim,
         }
     }
 }
 
-impl Outputs {
-    /// After a step: progress, warnings, live frame, recording, tables, checkpoint.
-    fn observe(&mut self, scenario: &Scenario, s: &Simulation) -> ControlFlow<()> {
-        if let Some(bar) = self.progress.as_mut() {
-            bar.update(s);
-        }
-        if let Some((watch, dt_min)) = self.clamp_watch.as_mut() {
-            let c = s.clock();
-            if let Some(window) = watch.observe(
-                c.step,
-                s.counters().clamped_steps,
-                std::time::Instant::now(),
-            ) {
-                let warning = clamping_warning(scenario, *dt_min, c.time, window);
-                // Above the progress bar, which also draws on stderr.
-                match self.progress.as_ref() {
-                    Some(bar) => bar.suspend(|| eprintln!("{warning}")),
-                    None => eprintln!("{warning}"),
-                }
-            }
-        }
-        if let Some(l) = self.live.as_mut() {
-            l.observe(s);
-        }
-        if let Some(r) = self.recorder.as_mut()
-            && let Err(e) = r.observe(s)
-        {
-            self.output_error = Some(e);
-            return ControlFlow::Break(());
-        }
-        if let Some(t) = self.tables.as_mut()
-            && let Err(e) = t.observe(s)
-        {
-            self.output_error = Some(e);
-            return ControlFlow::Break(());
-        }
-        if let (Some(path), Some(snapshot)) = (&self.restart_file, s.restart_snapshot()) {
-            let start = std::time::Instant::now();
-            match crate::restart::write(path, scenario, snapshot) {
-                Ok(bytes) => {
-                    let c = &mut self.checkpoints;
-                    c.count += 1;
-                    c.bytes = bytes;
-                    c.time = snapshot.time();
-                    c.writing_seconds += start.elapsed().as_secs_f64();
-                }
-                Err(e) => {
-                    self.output_error = Some(e);
-                    return ControlFlow::Break(());
-                }
-            }
-        }
-        if self.kill_after == Some(s.clock().step) {
-            // Die as a killed job does: no handler runs, nothing is flushed.
-            // SAFETY: getpid and kill have no preconditions.
-            unsafe { libc::kill(libc::getpid(), libc::SIGKILL) };
-        }
-        ControlFlow::Continue(())
+/// The outputs `plan` asks for, open on the built `sim` (each table takes its t = 0
+/// sample), in the order they are fed and finished: the progress line and the warnings
+/// first, the files, then the live view last (with a client connected it may keep
+/// serving the final state a while, and every file must be written before that wait),
+/// and a test's switches (which act once the step's outputs are written).
+fn open_observers(
+    plan: &RunPlan,
+    sim: &Simulation,
+    live_server: Option<(Server, LiveOptions)>,
+    stop: &Arc<AtomicBool>,
+) -> anyhow::Result<Vec<Box<dyn Observer>>> {
+    let scenario = &plan.scenario;
+    let mut observers: Vec<Box<dyn Observer>> = Vec::new();
+    let progress = plan
+        .progress
+        .then(|| Progress::new(scenario.time.end, scenario.uses_event_core()));
+    let bar = progress.as_ref().map(Progress::bar);
+    if let Some(p) = progress {
+        observers.push(Box::new(p));
     }
+    if let Some(w) = ClampWarnings::new(scenario, sim, bar) {
+        observers.push(Box::new(w));
+    }
+    // Created after the caller's stop handlers: once the file exists, a stop finalises it.
+    if let Some(path) = &plan.recording {
+        observers.push(Box::new(recording::Recording(Recorder::create(
+            path,
+            sim,
+            &plan.command_line,
+        )?)));
+    }
+    if let Some(tables) = RunTables::open(&plan.tables, scenario, sim)? {
+        observers.push(Box::new(tables));
+    }
+    for (table, path) in &plan.step_tables {
+        observers.push((table.open)(path, scenario, sim)?);
+    }
+    if let Some(path) = plan.restart_file() {
+        observers.push(Box::new(checkpoints::Checkpoints::new(
+            path,
+            scenario.clone(),
+        )));
+    }
+    if let Some(path) = &plan.final_state {
+        observers.push(Box::new(end_files::FinalState(path.clone())));
+    }
+    if let Some(path) = &plan.summary {
+        observers.push(Box::new(end_files::SummaryFile(path.clone())));
+    }
+    if let Some((server, options)) = live_server {
+        let beside = plan.recording.as_deref().or(plan.summary.as_deref());
+        observers.push(Box::new(start_live(
+            server, &options, sim, scenario, beside, stop,
+        )?));
+    }
+    if let Some(switches) = test_switches::TestSwitches::from_env() {
+        observers.push(Box::new(switches));
+    }
+    Ok(observers)
 }
 
 /// Start serving `sim` on the bound `server`: print the address and the link, write the
@@ -583,28 +538,4 @@ fn write_layout_beside(mcap: &Path, scenario: &Scenario) -> anyhow::Result<PathB
     let path = layout_path_for(mcap);
     write_fitted_layout(&path, scenario.domain.half_width)?;
     Ok(path)
-}
-
-/// Δt_min, if the scene can clamp at it: only the stepped core with adaptive steps does
-/// (the event core lands on every contact; fixed steps have no lower bound).
-fn clamping_floor(s: &Scenario) -> Option<f64> {
-    match s.time.stepping {
-        Stepping::Adaptive { dt_min, .. } if !s.uses_event_core() => Some(dt_min),
-        _ => None,
-    }
-}
-
-/// The warning printed (to stderr, even when quiet: it is about a run going wrong) when
-/// most steps of a window were clamped.
-fn clamping_warning(s: &Scenario, dt_min: f64, t: f64, window: ClampedWindow) -> String {
-    format!(
-        "warning: at t = {t:.4e} s, {} of the last {} steps were clamped at Δt_min = {dt_min:e} s \
-         although a contact was due sooner: contacts are resolved late, and the run advances \
-         about Δt_min per step (T/Δt_min = {:.1e} steps, time.max_steps = {}); \
-         lower time.stepping.adaptive.dt_min",
-        window.clamped,
-        window.steps,
-        s.time.end / dt_min,
-        s.time.max_steps
-    )
 }

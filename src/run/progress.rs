@@ -9,6 +9,7 @@
 
 use std::time::{Duration, Instant};
 
+use crate::observer::{Ending, Observer, Written};
 use crate::schedule::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -82,6 +83,23 @@ impl Progress {
 
     pub fn finish(&self) {
         self.bar.finish_and_clear();
+    }
+
+    /// The line itself, for another output to print above it ([`ProgressBar::suspend`]).
+    pub fn bar(&self) -> ProgressBar {
+        self.bar.clone()
+    }
+}
+
+impl Observer for Progress {
+    fn observe(&mut self, sim: &Simulation) -> anyhow::Result<()> {
+        self.update(sim);
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, _: &Ending<'_>, _: &mut Written) -> anyhow::Result<()> {
+        Progress::finish(&self);
+        Ok(())
     }
 }
 

@@ -2,11 +2,9 @@
 //! of a per-cell coupling library) and one replica box advanced over a macro step
 //! ([`run_replica`]).
 
-use std::ops::ControlFlow;
-
 use serde::{Deserialize, Serialize};
 
-use crate::kernel::{Accumulator, Sampling, Window};
+use crate::kernel::{Accumulating, Accumulator, Sampling, Window};
 use crate::scenario::Scenario;
 use agglo_engine::restart::RestartSnapshot;
 
@@ -358,7 +356,13 @@ fn run_scene(
         reason,
     };
     let built = profile::start();
-    let mut sim = crate::kernel::simulation(&scenario).map_err(|e| fail(e.to_string()))?;
+    // Only a box that measures the kernel collects the impact, merge and fragment
+    // messages its accumulator reads.
+    let simulation = match c.kernel {
+        true => crate::kernel::simulation(&scenario),
+        false => crate::plugins::simulation(&scenario),
+    };
+    let mut sim = simulation.map_err(|e| fail(e.to_string()))?;
     if let Some(snapshot) = &snapshot {
         sim.resume(snapshot).map_err(|e| fail(e.to_string()))?;
     }
@@ -368,20 +372,10 @@ fn run_scene(
     let (ledger0, counters0) = (sim.ledger(), sim.counters());
     let kernel = if c.kernel {
         let mut acc = Accumulator::new(c.kernel_grid(), Window::default(), Sampling::default());
-        acc.begin(&sim).map_err(|e| fail(e.to_string()))?;
-        let mut failed = None;
-        let outcome = sim.run_with(|s| match acc.observe(s) {
-            Ok(()) => ControlFlow::Continue(()),
-            Err(e) => {
-                failed = Some(e);
-                ControlFlow::Break(())
-            }
-        });
-        if let Some(e) = failed {
-            return Err(fail(format!("kernel: {e}")));
-        }
-        outcome.map_err(|e| fail(e.to_string()))?;
-        acc.end_run(&sim).map_err(|e| fail(e.to_string()))?;
+        crate::kernel::accumulate(&mut sim, &mut acc).map_err(|e| match e {
+            Accumulating::Kernel(e) => fail(format!("kernel: {e}")),
+            Accumulating::Run(e) => fail(e.to_string()),
+        })?;
         Some(acc)
     } else {
         sim.run().map_err(|e| fail(e.to_string()))?;

@@ -7,6 +7,8 @@ use bevy_ecs::prelude::*;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use agglo_engine::error::ValidationIssue;
+use agglo_engine::issues::Issues;
 pub use agglo_engine::laws::impact::{
     BondTest, DurationLaw, FrictionCap, PairHardness, Separation, SolverKind, WorkHeat,
 };
@@ -76,6 +78,46 @@ pub struct ImpactModel {
     /// radius b0. 0 switches the model off.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub collapse_time: Option<f64>,
+}
+
+impl ImpactModel {
+    /// Range problems of the `impact` section, by full path.
+    pub fn issues(&self) -> Vec<ValidationIssue> {
+        let mut v = Issues::default();
+        let i = self;
+        v.range_closed("impact.af", i.af, 0.0, 1.0, "0 < af ≤ 1");
+        if i.af == 0.0 {
+            v.push("impact.af", "0 < af ≤ 1", i.af);
+        }
+        v.range_closed("impact.a0", i.a0, 0.0, 1.0, "0 ≤ a0 ≤ af");
+        if i.a0.is_finite() && i.af.is_finite() && i.a0 > i.af {
+            v.issues.push(ValidationIssue {
+                path: "impact.a0".into(),
+                message: format!("must satisfy a0 ≤ af (got a0 = {}, af = {})", i.a0, i.af),
+            });
+        }
+        v.positive("impact.beta", i.beta);
+        v.range_open("impact.tol", i.tol, 0.0, 1.0, "0 < tol < 1");
+        if i.max_iterations == 0 {
+            v.push("impact.max_iterations", "≥ 1", 0.0);
+        }
+        if i.solver == SolverKind::ClosedFormPrinted && i.duration != DurationLaw::P04 {
+            v.issues.push(ValidationIssue {
+                path: "impact.solver".into(),
+                message: "closed_form_printed is P04 (4.14), derived for P04's duration law: \
+                          it needs impact.duration = \"p04\""
+                    .into(),
+            });
+        }
+
+        if let Some(RestitutionLaw::Constant(e)) = i.restitution {
+            v.range_closed("impact.restitution.constant", e, 0.0, 1.0, "0 ≤ e ≤ 1");
+        }
+        if let Some(tc) = i.collapse_time {
+            v.non_negative("impact.collapse_time", tc);
+        }
+        v.issues
+    }
 }
 
 /// A restitution law other than the impact/heat solve (docs/model.md §5.4).

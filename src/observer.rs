@@ -1,0 +1,63 @@
+//! What watches a run: an [`Observer`] is handed the simulation after every step and
+//! once at the end, whatever the outcome. Every output of a [`crate::run::Run`] is one — the
+//! progress line, the clamping warnings, the recording, the sampled tables, the
+//! per-step tables of [`crate::output::step_tables`], the checkpoints, the final state
+//! and summary files, the live view, a test's kill switch — and the run feeds them in
+//! the order it holds them, so a new output is a type here, not a field in the loop.
+//!
+//! What an observer subscribes at build (the messages it reads) is said by whoever
+//! opens it before the scene is built ([`crate::output::step_tables::StepTable::subscribe`],
+//! `TablePaths::builder`); what flag or section configures it, by the plan that opens it
+//! ([`crate::run::RunPlan`]). This module sits below the outputs it names (it imports
+//! none of them but the recording's report), so each can implement it.
+
+use std::path::PathBuf;
+
+use crate::components::BodyState;
+use crate::error::SimError;
+use crate::observables::Summary;
+use crate::record::RecordingReport;
+use crate::schedule::Simulation;
+
+/// One output of a run, fed after every step and finished once.
+/// `Send`: a run moves between threads (Python releases the GIL while it steps).
+pub trait Observer: Send {
+    /// After a step. An error stops the run at this step (it is told when the run
+    /// finishes; the other outputs are finished all the same).
+    fn observe(&mut self, sim: &Simulation) -> anyhow::Result<()>;
+    /// At the end of the run (reached T, stopped or failed): write what is left and
+    /// close. `written` collects what the front end reports.
+    fn finish(self: Box<Self>, end: &Ending<'_>, written: &mut Written) -> anyhow::Result<()>;
+}
+
+/// What an observer is given at the end of a run.
+pub struct Ending<'a> {
+    pub sim: &'a Simulation,
+    /// The last advance's result (the recording and the live view say it).
+    pub outcome: &'a Result<(), SimError>,
+    /// Every body now, sorted by id.
+    pub bodies: &'a [BodyState],
+    /// The summary of the run.
+    pub summary: &'a Summary,
+}
+
+/// What the observers wrote that the front end reports (`agglo run`'s closing lines).
+#[derive(Default)]
+pub struct Written {
+    /// The recording and what it holds.
+    pub recording: Option<(PathBuf, RecordingReport)>,
+    /// The restart file and the checkpoints written to it.
+    pub checkpoints: Option<(PathBuf, CheckpointsWritten)>,
+}
+
+/// Checkpoints written during a run.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CheckpointsWritten {
+    pub count: u64,
+    /// Size of the last [bytes].
+    pub bytes: u64,
+    /// Simulated time of the last [s].
+    pub time: f64,
+    /// Wall-clock seconds spent writing them.
+    pub writing_seconds: f64,
+}
