@@ -232,7 +232,6 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         )
     });
     let name = plan.scenario.name.clone();
-    let final_path = plan.final_state.clone();
     let stop = StopRequest::install();
     let mut run = Run::start(plan, stop.flag())?;
     if let Some((file, t, step, bodies)) = resumed
@@ -250,12 +249,10 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         print_outputs(&end, outcome.is_ok());
         print_report(&end.summary);
     }
-    if outcome.is_err()
-        && let Some(path) = &final_path
-    {
-        // Even with -q: a failed run's rows are not the state at the end time, and some
-        // may be NaN (issue 39: they were written without a word).
-        eprintln!("{}", failed_final_state_note(path, &end.sim));
+    for note in &end.notes {
+        // Even with -q: a failed run's final state is not the state at the end time, and
+        // some of its rows may be NaN (issue 39: they were written without a word).
+        eprintln!("note: {note}");
     }
     if let Some(e) = end.output_error {
         return Err(e.context("recording the run"));
@@ -265,32 +262,6 @@ fn run(args: RunArgs) -> anyhow::Result<()> {
         Some(why) => outcome.context(why),
         None => outcome,
     }
-}
-
-/// What the final state file of a failed run holds: the bodies when it failed, not at
-/// the end time, and how many of them carry a non-finite value.
-fn failed_final_state_note(path: &Path, sim: &Simulation) -> String {
-    let bodies = sim.bodies();
-    let broken = bodies
-        .iter()
-        .filter(|b| {
-            ![b.mass, b.radius, b.temperature, b.primaries]
-                .into_iter()
-                .chain(b.position.to_array())
-                .chain(b.velocity.to_array())
-                .all(f64::is_finite)
-        })
-        .count();
-    let clock = sim.clock();
-    format!(
-        "note: the run failed; the final state in {} holds its {} bodies at the failure \
-         (t = {} s, step {}), not at the end time, and {broken} of them have a non-finite \
-         value",
-        path.display(),
-        bodies.len(),
-        sci(clock.time),
-        clock.step
-    )
 }
 
 /// The plan of `agglo run`: the scenario (from a file, a recording or a restart file,

@@ -48,6 +48,9 @@ pub struct Written {
     pub recording: Option<(PathBuf, RecordingReport)>,
     /// The restart file and the checkpoints written to it.
     pub checkpoints: Option<(PathBuf, CheckpointsWritten)>,
+    /// What the front end must tell the user about a file besides that it was written
+    /// (e.g. a failed run's final state is not the state at the end time).
+    pub notes: Vec<String>,
 }
 
 /// Checkpoints written during a run.

@@ -3,11 +3,11 @@
 //! bounded time, and checks every call's status and contract. A crash or an abort of
 //! the library would end the C process by a signal; a hang, by this test's timeout.
 
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{compile_c, crate_dir};
+use common::{c_command, compile_c, crate_dir};
 
 /// Seconds the harness draws new cases for: a few seconds of the suite's time (the
 /// whole of `cargo test` runs about a minute in CI).
@@ -25,7 +25,7 @@ fn hostile_calls_through_the_c_interface_get_a_status_never_an_abort() {
     let scenario = crate_dir().join("../scenarios/ballistic_aggregation.json");
     // A fixed seed (reproducible in CI); AGGLO_FUZZ_SEED explores others.
     let seed = std::env::var("AGGLO_FUZZ_SEED").unwrap_or_else(|_| "39".into());
-    let mut child = Command::new(&exe)
+    let mut child = c_command(&exe)
         .arg(&scenario)
         .arg(&seed)
         .arg(BUDGET_SECONDS.to_string())

@@ -3,19 +3,17 @@
 //! warnings as errors, links to the shared library and passes its own checks; and the
 //! calls refuse NULLs and bad lengths by name, from Rust.
 
-use std::process::Command;
-
 use agglo_c::AggloStatus;
 
 mod common;
-use common::{compile_c, crate_dir};
+use common::{c_command, compile_c, crate_dir};
 
 #[test]
 fn the_c_example_compiles_runs_and_its_checks_hold() {
     let build = tempfile::tempdir().unwrap();
     let exe = compile_c("examples/advance_cells.c", build.path());
     let scenario = crate_dir().join("../scenarios/ballistic_aggregation.json");
-    let run = Command::new(&exe).arg(&scenario).output().unwrap();
+    let run = c_command(&exe).arg(&scenario).output().unwrap();
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(
         run.status.success(),

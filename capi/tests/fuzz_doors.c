@@ -111,6 +111,7 @@ static char *mutated(const char *seed, size_t len) {
 
 typedef struct {
   double n[CLASSES], m[CLASSES], v[3 * CLASSES], theta[CLASSES], tg[CLASSES];
+  double aniso[3 * CLASSES];
   AggloCellInput in;
 } Cell;
 
@@ -122,12 +123,15 @@ static void draw_cell(Cell *c, const double *edges, double n0) {
     for (int x = 0; x < 3; x++) c->v[3 * k + x] = near(0.0);
     c->theta[k] = near(300.0);
     c->tg[k] = near(1.0);
+    for (int x = 0; x < 3; x++) c->aniso[3 * k + x] = near(1.0);
   }
   c->in.number_density = c->n;
   c->in.mass = c->m;
   c->in.velocity = c->v;
   c->in.temperature = c->theta;
   c->in.granular_temperature = c->tg;
+  /* NULL (isotropic) half the time, else weights drawn near 1. */
+  c->in.granular_anisotropy = below(2) ? NULL : c->aniso;
   for (int x = 0; x < 3; x++) c->in.gas.velocity[x] = near(0.0);
   c->in.gas.temperature = near(300.0);
   c->in.gas.drag = below(4) ? AGGLO_DRAG_NONE : (uint32_t)below(6);
@@ -168,6 +172,7 @@ int main(int argc, char **argv) {
   if (agglo_coupling_new(scenario, edges, CLASSES + 1, &small, &open) != AGGLO_STATUS_OK)
     return fprintf(stderr, "coupling: %s\n", agglo_last_error()), 2;
   small.keep_bodies = 1;
+  small.persist = 0; /* a closed cell: its kept bodies, not adjusted to the input */
   if (agglo_coupling_new(scenario, edges, CLASSES + 1, &small, &closed) != AGGLO_STATUS_OK)
     return fprintf(stderr, "coupling: %s\n", agglo_last_error()), 2;
 
@@ -181,6 +186,7 @@ int main(int argc, char **argv) {
     good.theta[k] = 300.0;
     good.tg[k] = 1.0;
   }
+  good.in.granular_anisotropy = NULL;
   good.in.gas.velocity[0] = good.in.gas.velocity[1] = good.in.gas.velocity[2] = 0.0;
   good.in.gas.temperature = 300.0;
   good.in.gas.drag = AGGLO_DRAG_NONE;

@@ -298,11 +298,14 @@ impl Inner {
     }
 
     /// Finalise the outputs with `outcome` and keep the finished simulation.
-    fn finish(&mut self, outcome: &Result<(), SimError>) -> PyResult<()> {
+    /// Finish the run's outputs; the notes they leave for the user (a failed run's final
+    /// state is the state at the failure).
+    fn finish(&mut self, outcome: &Result<(), SimError>) -> PyResult<Vec<String>> {
         let State::Running(run) = std::mem::replace(&mut self.state, State::Switching) else {
-            return Ok(());
+            return Ok(Vec::new());
         };
         let end = run.finish(outcome);
+        let notes = end.notes;
         let mut tables = BTreeMap::new();
         let mut error = end.output_error.map(|e| e.context("recording the run"));
         if let Some(dir) = self.memory_dir.take() {
@@ -326,7 +329,7 @@ impl Inner {
         }));
         match error {
             Some(e) => Err(agglo_error(e)),
-            None => Ok(()),
+            None => Ok(notes),
         }
     }
 }
@@ -552,10 +555,13 @@ impl Simulation {
         guard(|| {
             let mut inner = self.lock()?;
             let c = inner.sim()?.clock();
-            inner.finish(&Err(SimError::Interrupted {
-                step: c.step,
-                time: c.time,
-            }))
+            // Closed on request: the caller knows the state is not at the end time.
+            inner
+                .finish(&Err(SimError::Interrupted {
+                    step: c.step,
+                    time: c.time,
+                }))
+                .map(drop)
         })
     }
 
@@ -728,10 +734,12 @@ impl Simulation {
             Ok(()) => Ok(false),
             Err(e) => {
                 let message = e.to_string();
-                // A failing output or a failed run: finalise what was written.
-                inner.finish(&Err(e))?;
+                // A failing output or a failed run: finalise what was written, and say
+                // what a file written at the failure holds.
+                let notes = inner.finish(&Err(e))?;
+                let notes: String = notes.iter().map(|n| format!("; note: {n}")).collect();
                 Err(AggloError::new_err(format!(
-                    "running the scenario: {message}"
+                    "running the scenario: {message}{notes}"
                 )))
             }
         }

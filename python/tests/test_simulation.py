@@ -287,6 +287,24 @@ def test_an_output_that_cannot_be_opened_leaves_the_simulation_usable(scenarios,
     np.testing.assert_array_equal(plain.bodies()["x"], sim.bodies()["x"])
 
 
+def test_a_failed_run_says_its_final_state_is_the_state_at_the_failure(scenarios, tmp_path):
+    """A run that fails mid-way still writes final_state, and its error says that the
+    file holds the bodies at the failure, not at the end time (the CLI prints the same
+    note; it was written without a word). Explicit cooling at hc = 1e9 W/(m² K)
+    overshoots to θ = −∞ (docs/model.md §8) after validation."""
+    scenario = quick(scenarios, **{"physics.cooling": "explicit", "material.epsilon": 1,
+                                   "material.hc": 1e9})
+    final = tmp_path / "final.csv"
+    sim = agglo.Simulation(scenario)
+    with pytest.raises(agglo.AggloError) as failed:
+        sim.run(final_state=final)
+    rows = pd.read_csv(final)
+    message = str(failed.value)
+    assert f"note: the run failed; the final state in {final} holds its {len(rows)} bodies" \
+        in message, message
+    assert "not at the end time" in message
+
+
 def test_a_hook_reads_the_clock_of_its_own_run(scenarios):
     """sim.t and sim.steps inside a hook are the last step's (they raised "running in
     another thread"); the rest of the simulation says it is running."""

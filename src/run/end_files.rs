@@ -1,9 +1,11 @@
 //! The files written once, when a run ends: the final state (`--final-state`, one CSV
-//! row per body) and the summary (`--summary`, JSON).
+//! row per body; after a failed run, with a note that it holds the bodies at the failure)
+//! and the summary (`--summary`, JSON).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use crate::output::{write_final_state_with, write_summary};
+use crate::readable::sci;
 use crate::schedule::Simulation;
 
 use crate::observer::{Ending, Observer, Written};
@@ -17,8 +19,12 @@ impl Observer for FinalState {
         Ok(())
     }
 
-    fn finish(self: Box<Self>, end: &Ending<'_>, _: &mut Written) -> anyhow::Result<()> {
-        write_final_state_with(&self.0, end.bodies, &end.sim.carried())
+    fn finish(self: Box<Self>, end: &Ending<'_>, written: &mut Written) -> anyhow::Result<()> {
+        write_final_state_with(&self.0, end.bodies, &end.sim.carried())?;
+        if end.outcome.is_err() {
+            written.notes.push(failed_final_state_note(&self.0, end));
+        }
+        Ok(())
     }
 }
 
@@ -33,4 +39,30 @@ impl Observer for SummaryFile {
     fn finish(self: Box<Self>, end: &Ending<'_>, _: &mut Written) -> anyhow::Result<()> {
         write_summary(&self.0, end.summary)
     }
+}
+
+/// What the final state file of a failed run holds: the bodies when it failed, not at
+/// the end time, and how many of them carry a non-finite value.
+fn failed_final_state_note(path: &Path, end: &Ending<'_>) -> String {
+    let bodies = end.bodies;
+    let broken = bodies
+        .iter()
+        .filter(|b| {
+            ![b.mass, b.radius, b.temperature, b.primaries]
+                .into_iter()
+                .chain(b.position.to_array())
+                .chain(b.velocity.to_array())
+                .all(f64::is_finite)
+        })
+        .count();
+    let clock = end.sim.clock();
+    format!(
+        "the run failed; the final state in {} holds its {} bodies at the failure \
+         (t = {} s, step {}), not at the end time, and {broken} of them have a non-finite \
+         value",
+        path.display(),
+        bodies.len(),
+        sci(clock.time),
+        clock.step
+    )
 }

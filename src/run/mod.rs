@@ -268,6 +268,9 @@ pub struct RunEnd {
     /// The first error of an output (recording, tables, checkpoints, final state,
     /// summary); the run's own outcome is the caller's.
     pub output_error: Option<anyhow::Error>,
+    /// What the outputs ask the front end to tell the user, even with -q (the CLI prints
+    /// them to stderr, Python adds them to the run's error).
+    pub notes: Vec<String>,
 }
 
 impl Run {
@@ -433,6 +436,7 @@ impl Run {
             layout: self.layout,
             checkpoints: written.checkpoints,
             output_error: error,
+            notes: written.notes,
             sim: self.sim,
         }
     }

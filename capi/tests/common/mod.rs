@@ -75,3 +75,19 @@ pub fn compile_c(source: &str, dir: &Path) -> PathBuf {
     );
     exe
 }
+
+/// A command running the C program `exe` against the library it was linked with. The
+/// rpath names that library, but `cargo test` puts target/<profile> on LD_LIBRARY_PATH,
+/// which outranks it: a libagglo_c.so that an earlier `cargo build` left there (an older
+/// interface) would be loaded instead. The library's own directory goes first.
+pub fn c_command(exe: &Path) -> Command {
+    let lib = library_dir();
+    let mut path = std::ffi::OsString::from(lib.as_os_str());
+    if let Some(old) = std::env::var_os("LD_LIBRARY_PATH") {
+        path.push(":");
+        path.push(old);
+    }
+    let mut command = Command::new(exe);
+    command.env("LD_LIBRARY_PATH", path);
+    command
+}
