@@ -1,7 +1,19 @@
 /*
  * agglo: a box of colliding, sticking, heating and fragmenting grains per flow-solver
- * cell (Zohdi 2004 section 9). See docs/coupling.md for the exchange and capi/src/lib.rs
- * for ownership rules: every handle the library gives is freed by its agglo_*_free;
+ * cell (Zohdi 2004 section 9); docs/coupling.md describes the exchange.
+ *
+ * The functions below come in the order a program uses them:
+ *   1. make a coupling once: agglo_coupling_options_default, agglo_coupling_new (or
+ *      _load), agglo_coupling_classes, agglo_coupling_primary;
+ *   2. each macro step, advance a cell (agglo_cell_advance) or a batch
+ *      (agglo_cells_advance);
+ *   3. read each cell's output by figure name: agglo_output_figures and
+ *      agglo_output_figure_name list them, agglo_output_len and agglo_output_get read
+ *      one; then agglo_output_free;
+ *   4. keep a cell's state between steps (agglo_state_to_bytes / _from_bytes for
+ *      restarts) and free it with agglo_state_free;
+ *   5. free the coupling (agglo_coupling_free).
+ * Rules: every handle the library gives is freed by its agglo_*_free (NULL accepted);
  * arrays are the caller's; every call returns an AggloStatus and, when it is not
  * AGGLO_STATUS_OK, agglo_last_error() says why, naming the cell and the field.
  */
@@ -58,6 +70,36 @@ typedef struct AggloCoupling AggloCoupling;
 // A cell's output (opaque): made by the advance calls, freed by `agglo_output_free`.
 typedef struct AggloOutput AggloOutput;
 
+// How each cell's boxes are made. Start from `agglo_coupling_options_default()` and
+// change what you need.
+typedef struct AggloCouplingOptions {
+  // Bodies per box N (the box volume is N / Σ n_k). 0: size the box by `target_se`.
+  uint32_t bodies;
+  // With `bodies` = 0: bodies enough that the cell's total impact rate has this
+  // relative standard error (0 < target_se < 1), clamped to [min_bodies, max_bodies].
+  double target_se;
+  uint32_t min_bodies;
+  uint32_t max_bodies;
+  // Replica boxes K per cell and macro step (independent seeds), ≥ 1.
+  uint32_t replicas;
+  // Keep each cell's bodies between macro steps (a closed cell): later steps
+  // continue the state's boxes and use only the input's gas and Δt. Excludes
+  // `persist` (set it to false).
+  bool keep_bodies;
+  // Pool the kernel counts and exposure of the boxes (`agglo kernel`'s sums) into
+  // each output: the figures `kernel_exposure` [s/m³], `kernel_bonds`,
+  // `kernel_bounces`, `kernel_fragments` [impacts], (classes × classes) sums over the
+  // replicas whose standard errors are NaN.
+  bool kernel;
+  // Keep each cell's boxes between macro steps and adjust them to each new input by
+  // what transport changed since the last step's rates were applied (bodies added or
+  // removed, velocities shifted and rescaled, per class); with no transport the
+  // closed cell. Excludes `keep_bodies`. The default (re-lifted chains drift as Δt
+  // shrinks, persistent ones do not: docs/coupling.md); false with `keep_bodies`
+  // false lifts every step afresh.
+  bool persist;
+} AggloCouplingOptions;
+
 // The cell's gas over the macro step.
 typedef struct AggloGas {
   // Gas velocity [m/s].
@@ -93,88 +135,12 @@ typedef struct AggloCellInput {
   double dt;
 } AggloCellInput;
 
-// How each cell's boxes are made. Start from `agglo_coupling_options_default()` and
-// change what you need.
-typedef struct AggloCouplingOptions {
-  // Bodies per box N (the box volume is N / Σ n_k). 0: size the box by `target_se`.
-  uint32_t bodies;
-  // With `bodies` = 0: bodies enough that the cell's total impact rate has this
-  // relative standard error (0 < target_se < 1), clamped to [min_bodies, max_bodies].
-  double target_se;
-  uint32_t min_bodies;
-  uint32_t max_bodies;
-  // Replica boxes K per cell and macro step (independent seeds), ≥ 1.
-  uint32_t replicas;
-  // Keep each cell's bodies between macro steps (a closed cell): later steps
-  // continue the state's boxes and use only the input's gas and Δt. Excludes
-  // `persist` (set it to false).
-  bool keep_bodies;
-  // Pool the kernel counts and exposure of the boxes (`agglo kernel`'s sums) into
-  // each output: the figures `kernel_exposure` [s/m³], `kernel_bonds`,
-  // `kernel_bounces`, `kernel_fragments` [impacts], (classes × classes) sums over the
-  // replicas whose standard errors are NaN.
-  bool kernel;
-  // Keep each cell's boxes between macro steps and adjust them to each new input by
-  // what transport changed since the last step's rates were applied (bodies added or
-  // removed, velocities shifted and rescaled, per class); with no transport the
-  // closed cell. Excludes `keep_bodies`. The default (re-lifted chains drift as Δt
-  // shrinks, persistent ones do not: docs/coupling.md); false with `keep_bodies`
-  // false lifts every step afresh.
-  bool persist;
-} AggloCouplingOptions;
-
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
 
 // The library's version, "MAJOR.MINOR.PATCH" (a static string).
 const char *agglo_version(void);
-
-// Advance one cell over its macro step. `*state` is NULL (lift the cell's bodies from
-// the input) or the cell's state from its previous step; on success it is replaced by
-// the new state (the old one is freed) and `*out` holds the output (free it with
-// `agglo_output_free`; whatever `*out` held before is overwritten, not freed). On
-// failure neither is touched.
-//
-// # Safety
-// `coupling` a live coupling; `input` points to an input whose arrays hold the
-// coupling's class count; `state` and `out` point to writable handle storage, `*state`
-// NULL or a live state.
-enum AggloStatus agglo_cell_advance(const struct AggloCoupling *coupling,
-                                    uint64_t cell,
-                                    uint64_t macro_step,
-                                    const struct AggloCellInput *input,
-                                    struct AggloCellState **state,
-                                    struct AggloOutput **out);
-
-// Advance a macro step's `n_cells` cells as independent tasks on `threads` worker
-// threads (0: one per core; at most 1024). Cell i has id `cells[i]`, input `inputs[i]` and state
-// `states[i]` (NULL: lift from the input), replaced on success as in
-// `agglo_cell_advance`; `outs[i]` gets its output, or NULL when it failed (what it held
-// before is overwritten, not freed), and
-// `statuses[i]` (NULL: not wanted) its status, written for every entry once the
-// arguments themselves are usable. A cell's own fault fails that cell alone: its input
-// (out of range, an unknown `gas.drag`, a NULL array), its state (another cell's, or a
-// closed cell's given to an open coupling), or a state given to two entries
-// (`AGGLO_STATUS_ARGUMENT` for each, naming the other index: advancing both would free
-// it twice). Returns `AGGLO_STATUS_OK` when every
-// cell advanced, else the first failed cell's status, with every failed cell's message
-// (one per line) in `agglo_last_error()`. A cell's output is the same bytes for any
-// thread count and any order of the cells.
-//
-// # Safety
-// `coupling` a live coupling; `cells` and `inputs` point to `n_cells` entries; `states`
-// and `outs` to `n_cells` writable handles (`states[i]` NULL or a live state of cell
-// `cells[i]`); `statuses` NULL or `n_cells` writable statuses.
-enum AggloStatus agglo_cells_advance(const struct AggloCoupling *coupling,
-                                     uint64_t macro_step,
-                                     uintptr_t n_cells,
-                                     const uint64_t *cells,
-                                     const struct AggloCellInput *inputs,
-                                     struct AggloCellState **states,
-                                     struct AggloOutput **outs,
-                                     enum AggloStatus *statuses,
-                                     uintptr_t threads);
 
 // The defaults: N = 1000 bodies per box, K = 4 replicas, persistent boxes (`persist`,
 // not `keep_bodies`), no kernel (target_se 0.05 within [100, 100 000] bodies when
@@ -242,10 +208,51 @@ enum AggloStatus agglo_scenario_primary_load(const char *path, double *radius, d
 // `coupling` is NULL or a coupling from this library not freed before.
 void agglo_coupling_free(struct AggloCoupling *coupling);
 
-// The message of the last failed call on this thread ("" when the last call
-// succeeded). The pointer stays valid until the next agglo call on this thread; copy
-// the text to keep it.
-const char *agglo_last_error(void);
+// Advance one cell over its macro step. `*state` is NULL (lift the cell's bodies from
+// the input) or the cell's state from its previous step; on success it is replaced by
+// the new state (the old one is freed) and `*out` holds the output (free it with
+// `agglo_output_free`; whatever `*out` held before is overwritten, not freed). On
+// failure neither is touched.
+//
+// # Safety
+// `coupling` a live coupling; `input` points to an input whose arrays hold the
+// coupling's class count; `state` and `out` point to writable handle storage, `*state`
+// NULL or a live state.
+enum AggloStatus agglo_cell_advance(const struct AggloCoupling *coupling,
+                                    uint64_t cell,
+                                    uint64_t macro_step,
+                                    const struct AggloCellInput *input,
+                                    struct AggloCellState **state,
+                                    struct AggloOutput **out);
+
+// Advance a macro step's `n_cells` cells as independent tasks on `threads` worker
+// threads (0: one per core; at most 1024). Cell i has id `cells[i]`, input `inputs[i]` and state
+// `states[i]` (NULL: lift from the input), replaced on success as in
+// `agglo_cell_advance`; `outs[i]` gets its output, or NULL when it failed (what it held
+// before is overwritten, not freed), and
+// `statuses[i]` (NULL: not wanted) its status, written for every entry once the
+// arguments themselves are usable. A cell's own fault fails that cell alone: its input
+// (out of range, an unknown `gas.drag`, a NULL array), its state (another cell's, or a
+// closed cell's given to an open coupling), or a state given to two entries
+// (`AGGLO_STATUS_ARGUMENT` for each, naming the other index: advancing both would free
+// it twice). Returns `AGGLO_STATUS_OK` when every
+// cell advanced, else the first failed cell's status, with every failed cell's message
+// (one per line) in `agglo_last_error()`. A cell's output is the same bytes for any
+// thread count and any order of the cells.
+//
+// # Safety
+// `coupling` a live coupling; `cells` and `inputs` point to `n_cells` entries; `states`
+// and `outs` to `n_cells` writable handles (`states[i]` NULL or a live state of cell
+// `cells[i]`); `statuses` NULL or `n_cells` writable statuses.
+enum AggloStatus agglo_cells_advance(const struct AggloCoupling *coupling,
+                                     uint64_t macro_step,
+                                     uintptr_t n_cells,
+                                     const uint64_t *cells,
+                                     const struct AggloCellInput *inputs,
+                                     struct AggloCellState **states,
+                                     struct AggloOutput **outs,
+                                     enum AggloStatus *statuses,
+                                     uintptr_t threads);
 
 // The number of named figures in an output (0 for NULL).
 //
@@ -320,6 +327,11 @@ enum AggloStatus agglo_state_from_bytes(const uint8_t *bytes,
 // # Safety
 // `state` is NULL or a state from this library not freed before.
 void agglo_state_free(struct AggloCellState *state);
+
+// The message of the last failed call on this thread ("" when the last call
+// succeeded). The pointer stays valid until the next agglo call on this thread; copy
+// the text to keep it.
+const char *agglo_last_error(void);
 
 #ifdef __cplusplus
 }  // extern "C"

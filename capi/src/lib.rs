@@ -31,11 +31,18 @@
 //!   macro step and its input (and state), never on the thread count or the order of
 //!   the cells in a batch.
 
-pub mod cell;
+// In the order of a cell's life, which is the order cbindgen writes them into the header
+// (kept apart so that rustfmt does not sort them): make a coupling, advance cells, read
+// their outputs, keep or restore their states, then the errors.
 pub mod coupling;
-pub mod error;
+
+pub mod cell;
+
 pub mod output;
+
 pub mod state;
+
+pub mod error;
 
 pub use error::AggloStatus;
 
