@@ -173,12 +173,15 @@ fn stirred(held: &CellInput, fresh: &CellInput) -> CellInput {
 /// One macro step of `inputs` (cell i at index i) on one thread: the process's CPU
 /// time, the CPU time in each part, what is left for the coupling (preparing, handing
 /// out and putting together the tasks, `apply_rates`), and the outputs and states.
+/// A macro step's outputs and states, its wall seconds, and each part's CPU seconds.
+type TimedStep = (Vec<(CellOutput, CellState)>, f64, [(Part, f64); 7]);
+
 fn timed_step(
     c: &Coupling,
     step: u64,
     inputs: &[CellInput],
     states: Vec<Option<CellState>>,
-) -> (Vec<(CellOutput, CellState)>, f64, [(Part, f64); 7]) {
+) -> TimedStep {
     let cells: Vec<_> = inputs
         .iter()
         .cloned()

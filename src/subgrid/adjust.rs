@@ -31,7 +31,8 @@ use agglo_engine::restart::BodyRow;
 use super::config::Coupling;
 use super::error::SubgridError;
 use super::exchange::{CellInput, CellOutput, ClassInput};
-use super::lift::{PlacementGrid, Stream, box_scene, is_trace, radius_of};
+use super::lift::{PlacementGrid, box_scene, is_trace, radius_of};
+use super::stream::Stream;
 
 /// What a flow solver without transport holds after adding Δt times `out`'s rates to
 /// `input`, per class: n ← n + Δt·number rate (clipped at 0), ρ, the momentum

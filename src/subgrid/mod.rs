@@ -56,6 +56,7 @@ mod lift;
 mod memory;
 pub mod profile;
 mod restrict;
+mod stream;
 mod structure;
 
 pub use adjust::apply_rates;

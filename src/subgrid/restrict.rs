@@ -64,8 +64,8 @@ impl ClassSums {
             let mean = s.momentum[k].map(|p| p / s.mass[k]);
             let d2 = [0, 1, 2].map(|x| (b.velocity[x] - mean[x]).powi(2));
             s.fluctuation[k] += b.mass * (d2[0] + d2[1] + d2[2]);
-            for x in 0..3 {
-                s.fluctuation_axes[k][x] += b.mass * d2[x];
+            for (axis, d) in s.fluctuation_axes[k].iter_mut().zip(d2) {
+                *axis += b.mass * d;
             }
         }
         s

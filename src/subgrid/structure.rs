@@ -1,8 +1,8 @@
 //! The lifted box's pair structure (issue 37 item 4; docs/model.md §15).
 //!
-//! Random sequential addition (lift.rs) leaves more pairs near contact than the
-//! equilibrium hard-sphere fluid at the same volume fraction: at φ = 0.26 its contact
-//! value, and with it the first-instant impact rate, is about 1.3 × Carnahan–Starling's.
+//! Random sequential addition (lift.rs) does not leave the equilibrium hard-sphere
+//! fluid's pair structure: at φ = 0.26 its contact value, and with it the first-instant
+//! impact rate, is 0.898 ± 0.004 of Carnahan–Starling's (docs/coupling.md).
 //! A few sweeps of hard-core Metropolis displacement moves relax the packing toward the
 //! equilibrium fluid (every non-overlapping configuration is equally likely, which these
 //! moves sample), so that the box's first impacts are the flow's, not the placement's.
@@ -14,7 +14,7 @@
 
 use crate::cloud::PlacedBody;
 
-use super::lift::Stream;
+use super::stream::Stream;
 
 /// Sweeps given to a box lifted at volume fraction ≥ [`EQUILIBRATE_FROM`] over a short
 /// step (lift.rs, `needs_sweeps`; docs/coupling.md gives the contact value against

@@ -36,8 +36,8 @@ fn contact_value(s: &Scenario, sigma: f64) -> f64 {
     for i in 0..p.len() {
         for j in 0..i {
             let mut r2 = 0.0;
-            for x in 0..3 {
-                let d = p[i][x] - p[j][x];
+            for (a, b) in p[i].iter().zip(&p[j]) {
+                let d = a - b;
                 let d = d - side * (d / side).round();
                 r2 += d * d;
             }

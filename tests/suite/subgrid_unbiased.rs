@@ -497,7 +497,10 @@ fn traces_are_ignored_and_a_target_se_box_always_fits() {
 /// The spread of identical cells' means over the RMS of their reported SEs, per figure
 /// (1 when the SE is honest about replica noise; its own relative SE is about
 /// 1/√(2(cells − 1)), 3.5 % over 400 cells).
-fn se_calibration(outs: &[CellOutput], figures: &[(&str, fn(&CellOutput) -> Stat)]) {
+/// A figure of a cell's output, by name.
+type Figure<'a> = (&'a str, fn(&CellOutput) -> Stat);
+
+fn se_calibration(outs: &[CellOutput], figures: &[Figure]) {
     for (name, figure) in figures {
         let stats: Vec<Stat> = outs.iter().map(figure).collect();
         let means: Vec<f64> = stats.iter().map(|s| s.mean).collect();
@@ -515,7 +518,7 @@ fn se_calibration(outs: &[CellOutput], figures: &[(&str, fn(&CellOutput) -> Stat
 #[test]
 #[ignore = "a measurement for docs/coupling.md (minutes)"]
 fn se_calibration_over_400_identical_cells() {
-    let figures: [(&str, fn(&CellOutput) -> Stat); 7] = [
+    let figures: [Figure; 7] = [
         ("total number rate", |o| o.number_rate),
         ("number rate, class 0", |o| o.classes[0].number_rate),
         ("number rate, class 1", |o| o.classes[1].number_rate),
