@@ -11,7 +11,9 @@ directory and their deterministic content (statuses, steps, counts, growth — e
 but wall times) must equal the committed files; a change that moves a documented number
 fails here until the docs are regenerated with this script (then rewrite the prose that
 quotes the moved numbers: docs/studies.md, docs/inverse.md, README.md). Tasks marked slow
-run only with --full (their commands are still the source of their files).
+run only with --full (their commands are still the source of their files). Last, the
+phrases of docs/studies.md that quote these tables are made again from the committed
+tables and looked for in the page (`studies-prose`).
 
 Standard library only: CI runs it with the machine's python3.
 """
@@ -21,10 +23,12 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import math
 import os
 import pathlib
 import re
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -401,13 +405,14 @@ def docs_quote_the_peer_counts(table: pathlib.Path) -> list[str]:
 PLUS_MINUS = re.compile(r"(\d+\.\d+) ± (\d+\.\d+)")
 
 
-def quoted_figures_are_made(page: pathlib.Path, sources: list[pathlib.Path]) -> list[str]:
-    """Every `a ± b` the page writes is a figure of one of its generated SOURCES, as
-    printed there or rounded to fewer digits (the page may quote 2.56 ± 0.02 for a table's
-    2.556 ± 0.019): a regenerated table that moves a figure fails until the prose follows."""
+def quoted_figures_are_made(page: pathlib.Path, sources: list[pathlib.Path | str]) -> list[str]:
+    """Every `a ± b` the page writes is a figure of one of its generated SOURCES (files,
+    or text made from them), as printed there or rounded to fewer digits (the page may
+    quote 2.56 ± 0.02 for a table's 2.556 ± 0.019): a regenerated table that moves a
+    figure fails until the prose follows."""
     made = []
     for src in sources:
-        for a, b in PLUS_MINUS.findall(src.read_text()):
+        for a, b in PLUS_MINUS.findall(src if isinstance(src, str) else src.read_text()):
             made.append((float(a), float(b)))
 
     def decimals(text):
@@ -447,6 +452,187 @@ def compare(task: Task, fresh_docs: pathlib.Path, agglo: pathlib.Path) -> list[s
     if task.name == "tutorial":
         out += python_md_quotes_the_fits(ROOT / "docs" / task.files[0])
     return out
+
+
+# ---- docs/studies.md's prose, against the committed tables ---------------------------
+
+
+def dict_rows(path: pathlib.Path) -> list[dict]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def signed(x: float, decimals: int) -> str:
+    """+6.8 / −8.5: a signed figure as the pages print it (a real minus sign)."""
+    return f"{x:+.{decimals}f}".replace("-", "−")
+
+
+def thousands(n: int) -> str:
+    return f"{n:,}".replace(",", " ")
+
+
+def studies_md_claims() -> list[str]:
+    """The phrases of docs/studies.md that quote a deterministic figure (growth, steps,
+    counts, iterations, seed statistics; never a wall time), each made again from the
+    committed tables under docs/study/. The page must contain each as written (whitespace
+    aside), so a regenerated table that moves a figure fails until the prose follows."""
+    study = ROOT / "docs" / "study"
+    scenes = {}
+    for scene in ("p04", "accuracy"):
+        rows = {r["label"]: r for r in dict_rows(study / scene / "accuracy.csv")}
+        seeds = [float(r["growth_ratio"]) for r in dict_rows(study / scene / "noise.csv")]
+        scenes[scene] = (rows, seeds)
+    claims = []
+
+    def growth(scene, label):
+        return float(scenes[scene][0][label]["growth_ratio"])
+
+    def change(scene, label):  # relative to the reference seed, in per cent
+        return 100 * (growth(scene, label) / growth(scene, "reference") - 1)
+
+    def ensemble(scene, label):
+        r = scenes[scene][0][label]
+        return f"{float(r['ensemble_growth_mean']):.2f} ± {float(r['ensemble_growth_se']):.2f}"
+
+    # Chaos sets the error floor: the seed-to-seed spread of the resolved run.
+    for scene, name in (("p04", "P04's best case"), ("accuracy", "the study scene")):
+        rows, seeds = scenes[scene]
+        mean, sd = statistics.mean(seeds), statistics.stdev(seeds)
+        ref = rows["reference"]
+        spread = (f"{len(seeds)} seeds is {mean:.2f} (standard deviation {sd:.2f}, "
+                  f"{100 * sd / mean:.1f} %)" if scene == "p04"
+                  else f"it is {mean:.2f} (standard deviation {sd:.2f})")
+        differs, ks = 100 * float(ref["noise_growth_error"]), float(ref["noise_ks"])
+        claims += [spread,
+                   f"differs from the reference seed by {differs:.1f} % on average (KS distance "
+                   f"of the radii: {ks:.2f})" if scene == "p04" else
+                   f"mean difference to the reference seed is {differs:.0f} % (KS {ks:.2f})"]
+        if scene == "accuracy":
+            top = max(dict_rows(study / scene / "noise.csv"), key=lambda r: float(r["growth_ratio"]))
+            claims.append(f"grows to {float(top['growth_ratio']):.2f} with {top['final_bodies']} "
+                          "bodies left")
+    p04, acc = scenes["p04"][0], scenes["accuracy"][0]
+    claims += [
+        f"The study scene takes {acc['reference']['steps']} steps",
+        f"P04's best case {p04['reference']['steps']} steps",
+        f"{growth('p04', 'stepped core c = 1'):.3f} against {growth('p04', 'reference'):.3f} on "
+        f"P04's best case ({abs(change('p04', 'stepped core c = 1')):.1f} %)",
+        f"{growth('accuracy', 'stepped core c = 1'):.3f} against "
+        f"{growth('accuracy', 'reference'):.3f} on the study scene",
+        f"takes {p04['stepped core c = 1']['steps']} steps",
+        "with errors of " + ", ".join(
+            f"{100 * float(p04[f'c = {c}']['growth_error']):.2g} %" for c in (2, 5, 10, 30))
+        + f" and {100 * float(p04['c = 100']['growth_error']):.2g} %",
+    ]
+    # Fixed steps: the scatter of every step but the coarsest (1e-3 s), and the coarsest.
+    for scene, decimals in (("p04", 1), ("accuracy", 0)):
+        rows = scenes[scene][0]
+        fixed = [l for l in rows if rows[l]["family"] == "fixed_dt"]
+        coarsest = max(fixed, key=lambda l: float(rows[l]["parameter"]))
+        rest = [l for l in fixed if l != coarsest]
+        steps = sorted(int(rows[l]["steps"]) for l in rest)
+        lo, hi = min(rest, key=lambda l: growth(scene, l)), max(rest, key=lambda l: growth(scene, l))
+        between = (f"scatter between {signed(change(scene, lo), decimals)} % and "
+                   f"{signed(change(scene, hi), decimals)} % ({growth(scene, lo):.2f}–"
+                   f"{growth(scene, hi):.2f})")
+        if scene == "p04":
+            dts = sorted(float(rows[l]["parameter"]) for l in rest)
+            claims.append(f"Δt = {dts[0]:.1e} to {dts[-1]:.1e} s ({thousands(steps[-1])} to "
+                          f"{steps[0]} steps) {between}".replace("e-0", "e-"))
+        else:
+            claims.append(f"{steps[-1]} to {steps[0]} steps {between}")
+        claims.append(f"{'(' if scene == 'p04' else ''}{rows[coarsest]['steps']} steps"
+                      f"{') gives' if scene == 'p04' else ' give'} "
+                      f"{growth(scene, coarsest):.2f} ({signed(change(scene, coarsest), 0)} %)")
+    # Cooling: implicit and exact give the plain fixed-step result at the same step.
+    for scene in ("accuracy", "p04"):
+        rows = scenes[scene][0]
+        step = next(l for l in rows if l.startswith("implicit dt = ")).split(" = ", 1)[1]
+        for integrator in ("implicit", "exact"):
+            if rows[f"{integrator} dt = {step}"]["growth_ratio"] != rows[f"dt = {step}"]["growth_ratio"]:
+                claims.append(f"({integrator} cooling at dt = {step} gives the plain fixed-Δt result)")
+    claims.append(f"({growth('accuracy', 'implicit dt = 1.362e-4 s'):.2f} and "
+                  f"{growth('p04', 'implicit dt = 9.123e-5 s'):.2f})")
+    # P04's table: one seed, and the mean ± s.e. over the study's seeds where it has one.
+    table = {
+        "resolved, c = 1 (reference, event core)": "reference",
+        "the same on the stepped core": "stepped core c = 1",
+        "P04's Δt bounds [1e-8, 1e-3] s, c = 1": "P04 dt bounds [1e-8 1e-3] s c = 1",
+        "nearest-neighbour contact rule, c = 1": "nearest-neighbour c = 1",
+        "nearest-neighbour rule, fixed Δt = 9.1e-5 s ({steps} steps)": "nearest-neighbour dt = 9.123e-5 s",
+        "nearest-neighbour rule, fixed Δt = 2.0e-4 s ({steps} steps)": "nearest-neighbour dt = 2.027e-4 s",
+        "fixed Δt = 9.1e-5 s": "dt = 9.123e-5 s",
+        "papers' plain iteration at TOL = 5e-4, cap 100 ({unconverged} impacts unconverged)":
+            "plain iteration TOL = 5e-4",
+        "plain iteration + nearest-neighbour + Δt = 4.1e-5 s": "plain + nearest-neighbour dt = 4.107e-5 s",
+        "plain iteration with an odd cap (101)": "plain iteration TOL = 5e-4 odd cap 101",
+    }
+    seeds = scenes["p04"][1]
+    reference_mean = (f"{statistics.mean(seeds):.2f} ± "
+                      f"{statistics.stdev(seeds) / len(seeds) ** 0.5:.2f}")
+    for written, label in table.items():
+        r = p04[label]
+        over = (reference_mean if label == "reference"
+                else ensemble("p04", label) if r["ensemble_growth_se"] != "NaN" else "")
+        claims.append(f"| {written.format(**r)} | {growth('p04', label):.2f} | {over} |")
+    papers = p04["all papers' choices dt = 9.123e-5 s"]
+    failed_at = re.search(r"at step (\d+)", papers["failure"])
+    claims.append(f"| all the papers' choices, including explicit cooling | fails at step "
+                  f"{failed_at.group(1) if failed_at and papers['status'] == 'failed' else '?'}")
+    plain, odd = "plain iteration TOL = 5e-4", "plain iteration TOL = 5e-4 odd cap 101"
+    mean_plain = float(p04[plain]["ensemble_growth_mean"])
+    se_plain = float(p04[plain]["ensemble_growth_se"])
+    se_ref = statistics.stdev(seeds) / len(seeds) ** 0.5
+    claims += [
+        f"{ensemble('p04', plain)} against the reference's {reference_mean} "
+        f"({signed(100 * (mean_plain / statistics.mean(seeds) - 1), 0)} %, z ≈ "
+        f"{(mean_plain - statistics.mean(seeds)) / math.hypot(se_plain, se_ref):.0f})",
+        f"its single seed 2004 ({growth('p04', plain):.2f})",
+        f"odd cap the same seeds give {ensemble('p04', odd)}",
+        f"closest is the plain iteration with an even cap ({ensemble('p04', plain)};",
+        "scatter by up to " + signed(max(change("p04", l) for l in p04
+                                         if p04[l]["family"] in ("fixed_dt", "papers")
+                                         and " dt = " in l and "plain" not in l
+                                         and "papers' choices" not in l), 0) + " %",
+        f"at the ladder's {p04['dt = 9.123e-5 s']['steps']} steps "
+        f"({growth('p04', 'dt = 9.123e-5 s'):.2f})",
+    ]
+    # The pair solve's maps.
+    cells = dict_rows(study / "stability" / "pair_map.csv")
+
+    def at(a0):
+        return [c for c in cells if float(c["a0"]) == a0]
+
+    cycle = [c for c in at(0.0) if c["plain_converged"] == "false"]
+    speeds = sorted(float(c["speed_over_critical"]) for c in cycle)
+
+    def most_plain(a0):
+        return max(int(c["plain_iterations"]) for c in at(a0) if c["plain_converged"] == "true")
+
+    def evaluations(c):
+        return int(c["safeguarded_plain_iterations"]) + int(c["safeguarded_fallback_iterations"])
+
+    soft = dict_rows(study / "stability" / "pair_map_softening.csv")
+    claims += [
+        f"all {len(cycle)} grid speeds from {speeds[0]:.2f} to {speeds[-1]:.2f} × critical",
+        f"needs up to {most_plain(0.02)} iterations near the critical speed "
+        f"({most_plain(0.1)} at a0 = 0.1, ≤ {most_plain(0.5)} at a0 = 0.5)",
+        f"needs at most {max(map(evaluations, cells))} evaluations of G on the whole grid "
+        f"({max(map(evaluations, at(0.0)))} at a0 = 0)",
+        f"on all {len(cells)} cells",
+        f"(≤ {max(int(c['plain_iterations']) for c in soft if c['plain_converged'] == 'true')} "
+        "iterations)",
+    ]
+    page = " ".join((ROOT / "docs" / "studies.md").read_text().split())
+    missing = [f"docs/studies.md should say `{c}` (made from docs/study/)"
+               for c in claims if " ".join(c.split()) not in page]
+    # Its `a ± b` figures: the ladders' seed means and the readings' tables.
+    ensembles = [reference_mean] + [
+        f"{float(r['ensemble_growth_mean'])} ± {float(r['ensemble_growth_se'])}"
+        for rows, _ in scenes.values() for r in rows.values() if r["ensemble_growth_se"] != "NaN"]
+    readings = sorted((study / "readings").rglob("readings.md"))
+    return missing + quoted_figures_are_made(ROOT / "docs" / "studies.md",
+                                             ["\n".join(ensembles), *readings])
 
 
 def python_md_quotes_the_fits(printed: pathlib.Path) -> list[str]:
@@ -493,6 +679,10 @@ def main(argv=None) -> int:
                 found = compare(t, out, agglo.resolve())
                 print(f"{t.name}: {'ok' if not found else f'{len(found)} differences'}")
                 problems += found
+    # The studies page's prose against the committed tables (cheap: no run).
+    prose = studies_md_claims()
+    print(f"studies-prose: {'ok' if not prose else f'{len(prose)} differences'}")
+    problems += prose
     if problems:
         print("\n".join(problems), file=sys.stderr)
         print(f"\n{len(problems)} documented figures differ from what the binary makes now: "
