@@ -12,8 +12,8 @@ but wall times) must equal the committed files; a change that moves a documented
 fails here until the docs are regenerated with this script (then rewrite the prose that
 quotes the moved numbers: docs/studies.md, docs/inverse.md, README.md). Tasks marked slow
 run only with --full (their commands are still the source of their files). Last, the
-phrases of docs/studies.md that quote these tables are made again from the committed
-tables and looked for in the page (`studies-prose`).
+phrases of docs/studies.md and docs/inverse.md that quote these tables are made again
+from the committed tables and looked for in the pages.
 
 Standard library only: CI runs it with the machine's python3.
 """
@@ -635,6 +635,56 @@ def studies_md_claims() -> list[str]:
                                              ["\n".join(ensembles), *readings])
 
 
+def inverse_md_claims() -> list[str]:
+    """docs/inverse.md's figures of the shipped GA runs (best.json: the GA's own `top`
+    and the closing `check` on fresh seeds) and of P02's control-volume sweep (scan.csv),
+    made again from the committed files and looked for in the page as written."""
+    import json
+    runs = ROOT / "docs" / "results" / "inverse"
+
+    def sci(x: float) -> str:  # 5.4e-4, as the page writes it
+        return f"{x:.1e}".replace("e-0", "e-").replace("e+00", "")
+
+    ordinal = ["first", "second", "third", "fourth"]
+    claims = []
+    for run, name, fmt in (("p04_run", "Π04", lambda x: f"{x:.3f}"), ("p02_run", "Π02", sci)):
+        best = json.loads((runs / run / "best.json").read_text())
+        top, fresh = best["top"][0], best["check"]["ranked"]
+        claims.append(f"{name} = {fmt(top['cost'])} ± {fmt(top['cost_se'])}")
+        first = next(r["rank"] for r in fresh if r["ga_rank"] == 1)
+        if run == "p04_run":
+            claims += [f"the {len(fresh)} best give {fmt(fresh[0]['cost'])}–{fmt(fresh[-1]['cost'])} "
+                       f"± {fmt(max(r['cost_se'] for r in fresh))}".replace("the 4 best", "the four best"),
+                       f"the GA's first comes {ordinal[first - 1]}"]
+        else:
+            last = fresh[-1]
+            claims.append(f"comes {'last' if first == len(fresh) else ordinal[first - 1]} on fresh "
+                          f"seeds ({sci(last['cost'])} ± {sci(last['cost_se'])})")
+            if all(abs(r["cost"]) < 2 * r["cost_se"] for r in fresh):
+                claims.append("all four are within two standard errors of zero")
+            else:
+                claims.append("(not all four are within two standard errors of zero)")
+    scan = {float(r["value"]): float(r["growth_ratio"])
+            for r in dict_rows(runs / "p02_d_sweep" / "scan.csv")}
+
+    def at(d):
+        return scan[min(scan, key=lambda v: abs(math.log(v / d)))]
+
+    near_two = [v for v in scan if v <= 4.7e-5]
+    bound = math.ceil(100 * max(abs(scan[v] - 2) for v in near_two)) / 100
+    stops = min(v for v in scan if all(scan[w] < 1.0005 for w in scan if w >= v))
+    claims += [
+        f"within {bound:.2f} of 2 for every D from 1e-6 to about 4.6e-5 m",
+        f"({at(1e-6):.2f} at 1e-6 m, {at(1e-5):.2f} at 1e-5 m",
+        f"{at(4.64e-5):.2f} at 4.6e-5 m), then falls ({at(6.81e-5):.2f} at 6.8e-5 m, "
+        f"{at(1e-4):.2f} at 1e-4 m)",
+        f"grains stop bonding at all for D ≳ {sci(stops)} m",
+    ]
+    page = " ".join((ROOT / "docs" / "inverse.md").read_text().split())
+    return [f"docs/inverse.md should say `{c}` (made from docs/results/inverse/)"
+            for c in claims if " ".join(c.split()) not in page]
+
+
 def python_md_quotes_the_fits(printed: pathlib.Path) -> list[str]:
     """docs/python.md quotes the tutorial's fitted exponents line for line."""
     page = (ROOT / "docs" / "python.md").read_text()
@@ -680,8 +730,8 @@ def main(argv=None) -> int:
                 print(f"{t.name}: {'ok' if not found else f'{len(found)} differences'}")
                 problems += found
     # The studies page's prose against the committed tables (cheap: no run).
-    prose = studies_md_claims()
-    print(f"studies-prose: {'ok' if not prose else f'{len(prose)} differences'}")
+    prose = studies_md_claims() + inverse_md_claims()
+    print(f"prose of studies.md and inverse.md: {'ok' if not prose else f'{len(prose)} differences'}")
     problems += prose
     if problems:
         print("\n".join(problems), file=sys.stderr)
