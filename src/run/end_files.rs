@@ -1,9 +1,10 @@
 //! The files written once, when a run ends: the final state (`--final-state`, one CSV
-//! row per body; after a failed run, with a note that it holds the bodies at the failure)
+//! row per body; after a failed or stopped run, with a note that it holds the bodies then)
 //! and the summary (`--summary`, JSON).
 
 use std::path::{Path, PathBuf};
 
+use crate::error::SimError;
 use crate::output::{write_final_state_with, write_summary};
 use crate::readable::sci;
 use crate::schedule::Simulation;
@@ -41,8 +42,8 @@ impl Observer for SummaryFile {
     }
 }
 
-/// What the final state file of a failed run holds: the bodies when it failed, not at
-/// the end time, and how many of them carry a non-finite value.
+/// What the final state file of a failed or stopped run holds: the bodies when it failed
+/// or stopped, not at the end time, and how many of them carry a non-finite value.
 fn failed_final_state_note(path: &Path, end: &Ending<'_>) -> String {
     let bodies = end.bodies;
     let broken = bodies
@@ -56,8 +57,14 @@ fn failed_final_state_note(path: &Path, end: &Ending<'_>) -> String {
         })
         .count();
     let clock = end.sim.clock();
+    // A stop asked for (a signal, Ctrl-C in Python, a hook) is not a failure: its state
+    // is whole, only early.
+    let (what, when) = match end.outcome {
+        Err(SimError::Interrupted { .. }) => ("was stopped", "the stop"),
+        _ => ("failed", "the failure"),
+    };
     format!(
-        "the run failed; the final state in {} holds its {} bodies at the failure \
+        "the run {what}; the final state in {} holds its {} bodies at {when} \
          (t = {} s, step {}), not at the end time, and {broken} of them have a non-finite \
          value",
         path.display(),

@@ -139,6 +139,15 @@ fn stops_cleanly_on(signal: &str) {
         .count()
         - 1;
     assert_eq!(rows as u64, summary["final_bodies"].as_u64().unwrap());
+    // The final state is whole, only early: the note says stopped, not failed.
+    assert!(
+        stderr.contains(&format!(
+            "note: the run was stopped; the final state in {} holds its {rows} bodies at the stop",
+            run.final_state.display()
+        )) && stderr.contains("0 of them have a non-finite value")
+            && !stderr.contains("failed"),
+        "{signal}: {stderr}"
+    );
 }
 
 #[test]
