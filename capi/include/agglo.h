@@ -123,7 +123,9 @@ typedef struct AggloCouplingOptions {
   // With `bodies` = 0: bodies enough that the cell's total impact rate has this
   // relative standard error (0 < target_se < 1), clamped to [min_bodies, max_bodies].
   double target_se;
+  // The fewest bodies per box `target_se` may choose (with `bodies` = 0), ≥ 1.
   uint32_t min_bodies;
+  // The most bodies per box `target_se` may choose (with `bodies` = 0), ≥ `min_bodies`.
   uint32_t max_bodies;
   // Replica boxes K per cell and macro step (independent seeds), ≥ 1.
   uint32_t replicas;
@@ -154,7 +156,11 @@ typedef struct AggloGas {
   // One of the `AGGLO_DRAG_*` values (a plain integer, so that any value C passes is
   // checked rather than trusted).
   uint32_t drag;
+  // The drag law's first parameter (see `AGGLO_DRAG_*`: τ [s], μ [Pa s] or ρ_g
+  // [kg/m³]); unused without drag.
   double drag_a;
+  // The drag law's second parameter (Epstein's thermal speed v_th [m/s]); unused
+  // otherwise.
   double drag_b;
 } AggloGas;
 
@@ -175,6 +181,7 @@ typedef struct AggloCellInput {
   // How each class's granular temperature splits over x, y, z, 3 per class (a_i ≥ 0,
   // not all 0): component i's variance is T·3a_i/(a_x + a_y + a_z). NULL: isotropic.
   const double *granular_anisotropy;
+  // The cell's gas over the step.
   struct AggloGas gas;
   // The macro time step Δt [s], > 0.
   double dt;
