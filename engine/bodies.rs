@@ -36,7 +36,9 @@ use crate::totals::Totals;
 /// scene's resources), whether the scene cools, and the field bodies fly in.
 #[derive(Debug, Clone, Copy)]
 pub struct Clockwork<'a> {
+    /// The periodic box (wrapping, cell crossings).
     pub geometry: &'a BoxGeometry,
+    /// The material (heat capacity and cooling constants).
     pub material: &'a Material,
     /// True when the scene cools (ε > 0 or hc > 0, cooling not off).
     pub cools: bool,
@@ -45,6 +47,8 @@ pub struct Clockwork<'a> {
 }
 
 impl<'a> Clockwork<'a> {
+    /// The clockwork of a scene: its box, material and physics options (which say whether
+    /// it cools).
     pub fn new(geometry: &'a BoxGeometry, material: &'a Material, options: &Physics) -> Self {
         Self {
             geometry,
@@ -287,6 +291,7 @@ impl Bodies<'_, '_> {
         self.query.iter().len()
     }
 
+    /// True when the scene holds no body.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

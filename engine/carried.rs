@@ -182,7 +182,9 @@ pub fn queue_split(commands: &mut Commands, parent: Entity, pieces: Vec<Entity>)
 /// (`None` where a body lacks the component).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct CarriedColumns {
+    /// The registered quantities' names, in registration order.
     pub names: Vec<String>,
+    /// One row per body: its stable id and its value of each quantity, in `names`' order.
     pub rows: Vec<(u64, Vec<Option<f64>>)>,
 }
 

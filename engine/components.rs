@@ -60,15 +60,25 @@ pub struct LocalTime(pub f64);
 /// Everything a particle entity is spawned with.
 #[derive(Bundle, Debug, Clone)]
 pub struct ParticleBundle {
+    /// The marker every body carries.
     pub marker: Particle,
+    /// The body's stable id ([`ParticleId`]).
     pub id: ParticleId,
+    /// Position [m].
     pub position: Position,
+    /// Velocity [m/s].
     pub velocity: Velocity,
+    /// Mass [kg].
     pub mass: Mass,
+    /// Radius [m].
     pub radius: Radius,
+    /// Temperature θ [K].
     pub temperature: Temperature,
+    /// Hardness H [Pa].
     pub hardness: Hardness,
+    /// The primary grains it is made of.
     pub primaries: Primaries,
+    /// The time the body's state is at [s] (event core: bodies are brought forward lazily).
     pub local_time: LocalTime,
 }
 
@@ -76,13 +86,21 @@ pub struct ParticleBundle {
 /// the bodies reads (`Simulation::bodies`, restart snapshots).
 #[derive(QueryData)]
 pub struct StoredBody {
+    /// The body's stable id ([`ParticleId`]).
     pub id: &'static ParticleId,
+    /// Position [m].
     pub position: &'static Position,
+    /// Velocity [m/s].
     pub velocity: &'static Velocity,
+    /// Mass [kg].
     pub mass: &'static Mass,
+    /// Radius [m].
     pub radius: &'static Radius,
+    /// Temperature θ [K].
     pub temperature: &'static Temperature,
+    /// Hardness H [Pa].
     pub hardness: &'static Hardness,
+    /// The primary grains it is made of.
     pub primaries: &'static Primaries,
     /// The time the state holds at [s] (the current time on the stepped core).
     pub local_time: &'static LocalTime,
@@ -107,13 +125,21 @@ impl StoredBodyItem<'_, '_> {
 /// A plain-data copy of one body's state, used for output and by pure functions.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BodyState {
+    /// The body's stable id ([`ParticleId`]).
     pub id: u64,
+    /// Position [m].
     pub position: DVec3,
+    /// Velocity [m/s].
     pub velocity: DVec3,
+    /// Mass [kg].
     pub mass: f64,
+    /// Radius [m].
     pub radius: f64,
+    /// Temperature θ [K].
     pub temperature: f64,
+    /// Hardness H [Pa].
     pub hardness: f64,
+    /// The primary grains it is made of.
     pub primaries: f64,
 }
 
@@ -121,19 +147,29 @@ pub struct BodyState {
 /// ([`crate::schedule::Simulation::body_columns`]).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BodyColumns {
+    /// The body's stable id ([`ParticleId`]).
     pub id: Vec<u64>,
-    /// Position and velocity components [m], [m/s].
+    /// x [m].
     pub x: Vec<f64>,
+    /// y [m].
     pub y: Vec<f64>,
+    /// z [m].
     pub z: Vec<f64>,
+    /// x velocity [m/s].
     pub vx: Vec<f64>,
+    /// y velocity [m/s].
     pub vy: Vec<f64>,
+    /// z velocity [m/s].
     pub vz: Vec<f64>,
-    /// [kg], [m], [K], [Pa], primaries.
+    /// Mass [kg].
     pub mass: Vec<f64>,
+    /// Radius [m].
     pub radius: Vec<f64>,
+    /// Temperature θ [K].
     pub temperature: Vec<f64>,
+    /// Hardness H [Pa].
     pub hardness: Vec<f64>,
+    /// The primary grains it is made of.
     pub primaries: Vec<f64>,
 }
 

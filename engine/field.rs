@@ -54,15 +54,23 @@ pub struct Drag {
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Relaxation {
     /// The same τ [s] for every body.
-    Constant { tau: f64 },
+    Constant {
+        /// τ [s], > 0.
+        tau: f64,
+    },
     /// Stokes drag in a gas of dynamic viscosity μ [Pa s]: F = 6π μ b (u − v),
     /// τ = m / (6π μ b) (grains much larger than the gas mean free path).
-    Stokes { viscosity: f64 },
+    Stokes {
+        /// μ [Pa s], > 0.
+        viscosity: f64,
+    },
     /// Epstein drag in a gas of density ρ_g [kg/m³] and mean thermal speed v_th [m/s]:
     /// F = (4π/3) ρ_g v_th b² (u − v), τ = m / ((4π/3) ρ_g v_th b²) (grains much smaller
     /// than the mean free path, as in protoplanetary discs).
     Epstein {
+        /// ρ_g [kg/m³], > 0.
         gas_density: f64,
+        /// v_th [m/s], > 0.
         thermal_speed: f64,
     },
 }

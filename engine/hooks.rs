@@ -28,14 +28,17 @@ pub use bevy_ecs::message::{MessageReader, MessageWriter, Messages};
 pub struct ImpactMessage {
     /// Contact time [s].
     pub time: f64,
-    /// Stable ids of the pair, `id_a < id_b`.
+    /// Stable id of the first body (`id_a < id_b`).
     pub id_a: u64,
+    /// Stable id of the second body (`id_a < id_b`).
     pub id_b: u64,
-    /// Masses before the impact [kg].
+    /// Mass of the first body before the impact [kg].
     pub mass_a: f64,
+    /// Mass of the second body before the impact [kg].
     pub mass_b: f64,
-    /// Radii [m].
+    /// Radius of the first body [m].
     pub radius_a: f64,
+    /// Radius of the second body [m].
     pub radius_b: f64,
     /// Approach speed along the normal before the impact, (v_a − v_b)·n̂ > 0 [m/s].
     pub normal_speed: f64,
@@ -117,7 +120,10 @@ pub enum OutcomeChange {
     Bond,
     /// The pair bounces with this restitution, clamped to [0, 1] (0: perfectly
     /// inelastic along the normal, but no bond).
-    Bounce { restitution: f64 },
+    Bounce {
+        /// e ∈ [0, 1].
+        restitution: f64,
+    },
 }
 
 /// One impact of the step, solved but not yet applied.
@@ -126,9 +132,10 @@ pub struct PendingImpact {
     /// What the law would do: the message the impact will write if nobody changes it
     /// (pair ids, masses, radii, approach speeds, restitution, heat, outcome).
     pub proposal: ImpactMessage,
-    /// The entities of `proposal.id_a` and `proposal.id_b`, to read extension
-    /// components (e.g. `Query<&Charge>::get(entity_a)`).
+    /// The entity of `proposal.id_a`, to read extension components (e.g.
+    /// `Query<&Charge>::get(entity_a)`).
     pub entity_a: Entity,
+    /// The entity of `proposal.id_b`.
     pub entity_b: Entity,
     change: Option<OutcomeChange>,
 }
@@ -170,15 +177,19 @@ pub struct PendingImpacts {
 }
 
 impl PendingImpacts {
+    /// The step's impacts, in resolution order.
     pub fn iter(&self) -> std::slice::Iter<'_, PendingImpact> {
         self.impacts.iter()
     }
+    /// The step's impacts, to change their outcome ([`PendingImpact`]).
     pub fn iter_mut(&mut self) -> std::slice::IterMut<'_, PendingImpact> {
         self.impacts.iter_mut()
     }
+    /// How many impacts the step has.
     pub fn len(&self) -> usize {
         self.impacts.len()
     }
+    /// True when the step has no impact.
     pub fn is_empty(&self) -> bool {
         self.impacts.is_empty()
     }

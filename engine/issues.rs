@@ -26,6 +26,7 @@ pub const MAX_SPEED: f64 = 1e5;
 /// Collects range violations with their field paths.
 #[derive(Debug, Default)]
 pub struct Issues {
+    /// The problems found, in the order they were found.
     pub issues: Vec<ValidationIssue>,
 }
 
@@ -44,31 +45,37 @@ impl Issues {
             message: message.into(),
         });
     }
+    /// `path` must be finite.
     pub fn finite(&mut self, path: &str, x: f64) {
         if !x.is_finite() {
             self.push(path, "a finite number", x);
         }
     }
+    /// `path` must be finite and > 0.
     pub fn positive(&mut self, path: &str, x: f64) {
         if !(x.is_finite() && x > 0.0) {
             self.push(path, "a finite number > 0", x);
         }
     }
+    /// `path` must be finite and ≥ 0.
     pub fn non_negative(&mut self, path: &str, x: f64) {
         if !(x.is_finite() && x >= 0.0) {
             self.push(path, "a finite number ≥ 0", x);
         }
     }
+    /// `path` must lie in (lo, hi); `allowed` says so in the message.
     pub fn range_open(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
         if !(x > lo && x < hi) {
             self.push(path, allowed, x);
         }
     }
+    /// `path` must lie in (lo, hi]; `allowed` says so in the message.
     pub fn range_open_closed(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
         if !(x > lo && x <= hi) {
             self.push(path, allowed, x);
         }
     }
+    /// `path` must lie in [lo, hi]; `allowed` says so in the message.
     pub fn range_closed(&mut self, path: &str, x: f64, lo: f64, hi: f64, allowed: &str) {
         if !(x >= lo && x <= hi) {
             self.push(path, allowed, x);

@@ -30,6 +30,8 @@
 //! Nothing here knows a built-in plugin: `agglo-systems` builds on this crate, and the
 //! `agglo` package (drivers and command line) on both. All quantities are SI and `f64`.
 
+#![warn(missing_docs)]
+
 pub mod bodies;
 pub mod carried;
 pub mod cloud;

@@ -68,6 +68,7 @@ pub struct Growth {
     pub n_f: f64,
     /// Π02 = |b_f / (2 b0) − 1|.
     pub pi02: f64,
+    /// Radius [m].
     pub radius: RadiusStats,
 }
 
@@ -95,13 +96,19 @@ impl Growth {
 /// What `agglo run --summary` writes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
+    /// The scenario's `name`.
     pub scenario: String,
+    /// The run's seed.
     pub seed: u64,
     /// Simulated time reached [s].
     pub time: f64,
+    /// Steps taken (events, on the event core).
     pub steps: u64,
+    /// Bodies at t = 0.
     pub initial_bodies: usize,
+    /// Bodies at the end.
     pub final_bodies: usize,
+    /// The growth observables (docs/model.md §11).
     pub growth: Growth,
     /// Mean primaries per body.
     pub mean_primaries: f64,
@@ -109,20 +116,28 @@ pub struct Summary {
     pub kinetic_energy: f64,
     /// Σ m C θ [J].
     pub thermal_energy: f64,
-    /// Mean and maximum temperature [K].
+    /// Mean temperature [K].
     pub mean_temperature: f64,
+    /// Maximum temperature [K].
     pub max_temperature: f64,
+    /// The event counters.
     pub counters: Counters,
+    /// The energy ledger: every term the run booked [J].
     pub energy: EnergyLedger,
+    /// Worst |M − M0| / M0 seen.
     pub max_mass_error: f64,
+    /// Worst |P − P0| / Σ m|v| seen.
     pub max_momentum_error: f64,
+    /// Worst error of the total energy ledger (docs/model.md §10).
     pub max_energy_error: f64,
-    /// Worst error of the kinetic and of the thermal energy ledger, each relative to its
-    /// own scale (docs/model.md §10).
+    /// Worst error of the kinetic energy ledger, relative to its own scale
+    /// (docs/model.md §10).
     #[serde(default)]
     pub max_kinetic_energy_error: f64,
     #[serde(default)]
+    /// Worst error of the thermal energy ledger, relative to its own scale.
     pub max_thermal_energy_error: f64,
+    /// The first few invariant violations, human readable (empty: none).
     pub invariant_violations: Vec<String>,
     /// Plugins built into the run, in order.
     pub plugins: Vec<String>,
@@ -146,6 +161,7 @@ impl Simulation {
 }
 
 impl Summary {
+    /// The summary of `sim` now, from its `bodies` (sorted by id).
     pub fn new(sim: &Simulation, bodies: &[BodyState]) -> Self {
         let material = sim.material();
         let clock = sim.clock();

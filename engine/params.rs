@@ -16,10 +16,15 @@ use crate::scene::{Material, Physics, TimeControl};
 /// box, the physics options, the time control and the field.
 #[derive(SystemParam)]
 pub struct SceneConstants<'w> {
+    /// The material.
     pub material: Res<'w, Material>,
+    /// The primary grain (radius b0 [m], mass [kg]).
     pub primary: Res<'w, PrimaryGrain>,
+    /// The end time and stepping.
     pub time: Res<'w, TimeControl>,
+    /// The periodic box.
     pub geometry: Res<'w, BoxGeometry>,
+    /// The physics options.
     pub options: Res<'w, Physics>,
     /// The field bodies fly in between events, if the scene has one.
     pub field: Option<Res<'w, Field>>,
@@ -64,9 +69,14 @@ impl RunView<'_> {
 /// and what happened to which body this step (for the event core and the checks).
 #[derive(SystemParam)]
 pub struct RunBooks<'w> {
+    /// The clock: time [s], step, Δt [s].
     pub clock: ResMut<'w, SimClock>,
+    /// The event counters.
     pub counters: ResMut<'w, Counters>,
+    /// The energy ledger [J].
     pub ledger: ResMut<'w, EnergyLedger>,
+    /// Whether velocities or the body set changed this step.
     pub changed: ResMut<'w, StateChanged>,
+    /// What happened to which body this step.
     pub events: ResMut<'w, StepEvents>,
 }

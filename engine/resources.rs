@@ -62,7 +62,9 @@ pub struct SimClock {
 pub struct Counters {
     /// Impacts resolved (bounces + bonds).
     pub impacts: u64,
+    /// Impacts that bonded.
     pub bonds: u64,
+    /// Impacts that bounced.
     pub bounces: u64,
     /// Bodies that fragmented.
     pub fragmentations: u64,
@@ -160,6 +162,7 @@ pub struct EnergyLedger {
 /// snapshot: a run stops at the first.
 #[derive(Resource, Debug, Clone, PartialEq, Default)]
 pub struct NonFiniteState {
+    /// The step and the body, quantity and value of the first non-finite state seen.
     pub first: Option<(u64, String)>,
 }
 
@@ -178,8 +181,11 @@ impl NonFiniteState {
 /// Reference totals at t = 0 and the worst invariant errors seen.
 #[derive(Resource, Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct InvariantReport {
+    /// Total mass at t = 0 [kg].
     pub initial_mass: f64,
+    /// Total momentum at t = 0 [kg m/s].
     pub initial_momentum: [f64; 3],
+    /// Kinetic plus thermal energy at t = 0 [J].
     pub initial_energy: f64,
     /// Σ m|v| at t = 0 [kg m/s]: the scale of momentum errors.
     pub momentum_scale: f64,
@@ -200,10 +206,13 @@ pub struct InvariantReport {
 /// One contact pair to resolve this step, found by contact detection.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Contact {
+    /// The body with the smaller id.
     pub a: Entity,
+    /// The body with the larger id.
     pub b: Entity,
-    /// Stable ids of a and b (a's id < b's id).
+    /// a's stable id (less than b's).
     pub id_a: u64,
+    /// b's stable id.
     pub id_b: u64,
     /// Unit normal from a to b (towards the periodic image of b that is met).
     pub normal: DVec3,
@@ -216,15 +225,20 @@ pub struct Contact {
 /// Contacts to resolve this step, in resolution order.
 #[derive(Resource, Debug, Default)]
 pub struct ContactList {
+    /// The contacts, in resolution order.
     pub contacts: Vec<Contact>,
 }
 
 /// What one impact did to one body, for merging and fragmentation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImpactRecord {
+    /// The first body.
     pub a: Entity,
+    /// The second body.
     pub b: Entity,
+    /// a's stable id.
     pub id_a: u64,
+    /// b's stable id.
     pub id_b: u64,
     /// Unit normal from a to b.
     pub normal: DVec3,
@@ -232,14 +246,16 @@ pub struct ImpactRecord {
     pub separation: DVec3,
     /// True when the pair bonded (to be merged).
     pub bonded: bool,
-    /// Kinetic energy each body lost in the pair's centre-of-mass frame [J].
+    /// Kinetic energy a lost in the pair's centre-of-mass frame [J].
     pub lost_a: f64,
+    /// Kinetic energy b lost in the pair's centre-of-mass frame [J].
     pub lost_b: f64,
 }
 
 /// Impacts resolved this step.
 #[derive(Resource, Debug, Default)]
 pub struct ImpactRecords {
+    /// One per impact, in resolution order.
     pub records: Vec<ImpactRecord>,
 }
 
@@ -256,9 +272,11 @@ pub struct StepEvents {
     pub despawned: Vec<u64>,
     /// Event-core slots whose prediction was used up without the body changing.
     pub repredict: Vec<u32>,
-    /// How many `touched`, `spawned` and `despawned` entries the event core has filed.
+    /// How many `touched` entries the event core has filed.
     pub filed: usize,
+    /// How many `spawned` entries the event core has filed.
     pub filed_spawned: usize,
+    /// How many `despawned` entries the event core has filed.
     pub filed_despawned: usize,
 }
 
@@ -268,6 +286,7 @@ impl StepEvents {
         self.touched.push((entity, before));
     }
 
+    /// Forget the step (when it closes).
     pub fn clear(&mut self) {
         self.touched.clear();
         self.spawned.clear();
@@ -316,6 +335,7 @@ pub struct StateChanged(pub bool);
 pub struct SimRng(pub StdRng);
 
 impl SimRng {
+    /// The generator seeded with the scenario's `seed`.
     pub fn seeded(seed: u64) -> Self {
         SimRng(StdRng::seed_from_u64(seed))
     }
@@ -328,6 +348,7 @@ impl SimRng {
 /// body's.
 #[derive(Resource, Debug, Clone, Copy, PartialEq, Eq)]
 pub struct IdAllocator {
+    /// The next id handed out.
     pub next: u64,
     /// One past the last id that may be handed out.
     pub end: u64,
@@ -363,6 +384,7 @@ impl IdAllocator {
         }
     }
 
+    /// The next free id (panics only past 2^64 / N fragments, which no run reaches).
     pub fn allocate(&mut self) -> u64 {
         // The range holds at least 2^64 / N ids: beyond any number of fragments a run
         // can make.

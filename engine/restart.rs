@@ -93,14 +93,23 @@ impl Checkpoints {
 /// One body as the snapshot holds it: every component, at its own reference time.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct BodyRow {
+    /// The body's stable id ([`ParticleId`]).
     pub id: u64,
+    /// Position [m].
     pub position: [f64; 3],
+    /// Velocity [m/s].
     pub velocity: [f64; 3],
+    /// Mass [kg].
     pub mass: f64,
+    /// Radius [m].
     pub radius: f64,
+    /// Temperature θ [K].
     pub temperature: f64,
+    /// Hardness H [Pa].
     pub hardness: f64,
+    /// The primary grains it is made of.
     pub primaries: f64,
+    /// The time the body's state is at [s] (event core: bodies are brought forward lazily).
     pub local_time: f64,
 }
 
@@ -128,7 +137,9 @@ impl BodyRow {
 pub struct RestartPart {
     /// Unique name of the part (the snapshot's key).
     pub name: &'static str,
+    /// Write the part's state as bytes.
     pub save: fn(&World) -> Vec<u8>,
+    /// Set the part's state from those bytes (an error says why they do not read).
     pub load: fn(&mut World, &[u8]) -> Result<(), String>,
 }
 
@@ -139,16 +150,24 @@ pub struct RestartParts(pub Vec<RestartPart>);
 /// Everything a run needs to continue from a checkpoint (see the module doc).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RestartSnapshot {
+    /// The snapshot layout's version (a newer one is refused by name).
     pub version: u32,
+    /// The clock: time [s], step, Δt [s].
     pub clock: SimClock,
     /// [`Counters`] as a list (its serde form skips zero fields, which a compact
     /// encoding cannot): see [`counters_to_list`].
     pub counters: Vec<u64>,
+    /// The energy ledger [J].
     pub ledger: EnergyLedger,
+    /// The invariant references and worst errors so far.
     pub report: InvariantReport,
+    /// The next stable id a fragment gets.
     pub next_id: u64,
+    /// When the force systems kicked last (interval, time of the last kick, kicks so far).
     pub kicks: ForceKicks,
+    /// Whether velocities or the body set changed in the last step.
     pub state_changed: bool,
+    /// The checkpoint schedule: its interval [s] and the checkpoints taken so far.
     pub checkpoints: Checkpoints,
     /// Bodies in the world's iteration order (restored in that order, so a resumed world
     /// iterates them as the uninterrupted one does).

@@ -317,6 +317,7 @@ fn default_max_steps() -> u64 {
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
+/// How the stepped core chooses Δt (`time.stepping`, docs/model.md §4).
 pub enum Stepping {
     /// Adaptive Δt = clamp(c·t_c, Δt_min, min(Δt_max, skin / (2 v_max))).
     Adaptive {
@@ -334,7 +335,10 @@ pub enum Stepping {
         skin: f64,
     },
     /// Fixed Δt [s]; contacts are found only as overlaps at step ends (pairs may tunnel).
-    Fixed { dt: f64 },
+    Fixed {
+        /// Δt [s], > 0.
+        dt: f64,
+    },
 }
 
 impl Stepping {
@@ -429,6 +433,7 @@ impl Default for Physics {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
+/// Which touching pairs of a step are resolved (`physics.contact_rule`).
 pub enum ContactRule {
     /// Every touching, approaching pair is a contact (deepest first, one per body per step).
     #[default]

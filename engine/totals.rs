@@ -8,11 +8,15 @@ use glam::DVec3;
 /// Totals of the conserved (or tallied) quantities.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Totals {
+    /// Mass [kg].
     pub mass: f64,
+    /// Momentum Σ m v [kg m/s].
     pub momentum: DVec3,
     /// Σ m |v| [kg m/s].
     pub momentum_scale: f64,
+    /// Kinetic energy Σ ½ m v² [J].
     pub kinetic: f64,
+    /// Thermal energy Σ m C θ [J].
     pub thermal: f64,
 }
 
@@ -28,6 +32,7 @@ impl Totals {
         }
     }
 
+    /// Kinetic plus thermal energy [J].
     pub fn energy(&self) -> f64 {
         self.kinetic + self.thermal
     }

@@ -29,11 +29,17 @@ use agglo_engine::scene::{ContactRule, ImpactsPerStep};
 /// The bodies of this step in stable-id order, plus their near pairs.
 #[derive(Resource, Debug, Default)]
 pub struct NeighbourTable {
+    /// Stable ids, one per body, ascending.
     pub ids: Vec<u64>,
+    /// The entities, in the order of `ids`.
     pub entities: Vec<Entity>,
+    /// Positions [m], in the order of `ids`.
     pub positions: Vec<DVec3>,
+    /// Velocities [m/s], in the order of `ids`.
     pub velocities: Vec<DVec3>,
+    /// Radii [m], in the order of `ids`.
     pub radii: Vec<f64>,
+    /// Masses [kg], in the order of `ids`.
     pub masses: Vec<f64>,
     /// Pairs with gap ≤ margin at the last rebuild (skin, or the contact tolerance for
     /// fixed steps); their `d` and `gap` are current.
@@ -53,14 +59,21 @@ pub struct NeighbourTable {
 /// What the stepped core's contact search and step choice read of a body.
 #[derive(QueryData)]
 pub struct SearchBody {
+    /// The body's entity.
     pub entity: Entity,
+    /// The body's stable id ([`ParticleId`]).
     pub id: &'static ParticleId,
+    /// Position [m].
     pub position: &'static Position,
+    /// Velocity [m/s].
     pub velocity: &'static Velocity,
+    /// Radius [m].
     pub radius: &'static Radius,
+    /// Mass [kg].
     pub mass: &'static Mass,
 }
 
+/// The stepped core's bodies as the contact search reads them.
 pub type BodyQuery<'w, 's> = Query<'w, 's, SearchBody, With<Particle>>;
 
 impl NeighbourTable {

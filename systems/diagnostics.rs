@@ -254,6 +254,8 @@ fn running_values(t: &Totals) -> [f64; 6] {
 }
 
 impl RunningTotals {
+    /// Totals running from `start`, recomputed in full (rounding reset) every
+    /// `full_every` steps (at least 1).
     pub fn new(start: &Totals, full_every: u64) -> Self {
         let mut r = Self {
             sums: [(0.0, 0.0); 6],
@@ -314,11 +316,17 @@ impl RunningTotals {
 /// What the invariant checks read of a body: its state and totals.
 #[derive(QueryData)]
 pub struct CheckedBody {
+    /// The body's stable id ([`ParticleId`]).
     pub id: &'static ParticleId,
+    /// Position [m].
     pub position: &'static Position,
+    /// Velocity [m/s].
     pub velocity: &'static Velocity,
+    /// Mass [kg].
     pub mass: &'static Mass,
+    /// Radius [m].
     pub radius: &'static Radius,
+    /// Temperature θ [K].
     pub temperature: &'static Temperature,
 }
 

@@ -133,12 +133,19 @@ pub fn closest_distance(points: &[DVec3]) -> f64 {
 /// What fragmentation reads of a body it may break (the pieces are new bodies).
 #[derive(QueryData)]
 pub struct FragmentBody {
+    /// The body's stable id ([`ParticleId`]).
     pub id: &'static ParticleId,
+    /// Position [m].
     pub position: &'static Position,
+    /// Velocity [m/s].
     pub velocity: &'static Velocity,
+    /// Mass [kg].
     pub mass: &'static Mass,
+    /// Radius [m].
     pub radius: &'static Radius,
+    /// Temperature θ [K].
     pub temperature: &'static Temperature,
+    /// The primary grains it is made of.
     pub primaries: &'static Primaries,
 }
 

@@ -14,6 +14,8 @@
 //! file of the systems it schedules; they call the core-only builder calls
 //! ([`agglo_engine::core_only::SimBuilderCore`]) besides the ones every plugin has.
 
+#![warn(missing_docs)]
+
 pub mod boundary;
 pub mod contact;
 mod contact_plugin;

@@ -42,13 +42,21 @@ use agglo_engine::scene::ImpactsPerStep;
 #[derive(QueryData)]
 #[query_data(mutable)]
 pub struct MergeBody {
+    /// Position [m].
     pub position: &'static mut Position,
+    /// Velocity [m/s].
     pub velocity: &'static mut Velocity,
+    /// Mass [kg].
     pub mass: &'static mut Mass,
+    /// Radius [m].
     pub radius: &'static mut Radius,
+    /// Temperature θ [K].
     pub temperature: &'static mut Temperature,
+    /// Hardness H [Pa].
     pub hardness: &'static mut Hardness,
+    /// The primary grains it is made of.
     pub primaries: &'static mut Primaries,
+    /// The body's stable id ([`ParticleId`]).
     pub id: &'static ParticleId,
 }
 

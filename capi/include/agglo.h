@@ -16,6 +16,14 @@
  * Rules: every handle the library gives is freed by its agglo_*_free (NULL accepted);
  * arrays are the caller's; every call returns an AggloStatus and, when it is not
  * AGGLO_STATUS_OK, agglo_last_error() says why, naming the cell and the field.
+ * Handle arguments are of two kinds, and every call follows the same rule for each:
+ *   - out (`out`, `outs`: a new coupling, output or state): written on success, never
+ *     read, so whatever it held before is overwritten, not freed;
+ *   - in-out (`state`, `states` of the advance calls, the one kind that carries a
+ *     handle in): the call takes the state it holds and, on success, frees it and
+ *     writes the new one there.
+ *   A call that fails leaves both kinds as they were (a batch writes each cell's
+ *   status, and NULL into a failed cell's `outs[i]`).
  */
 
 #ifndef AGGLO_H
@@ -68,6 +76,43 @@ typedef struct AggloCellState AggloCellState;
 typedef struct AggloCoupling AggloCoupling;
 
 // A cell's output (opaque): made by the advance calls, freed by `agglo_output_free`.
+// Each figure is the mean over the K replica boxes and its standard error, read by
+// name with `agglo_output_get` (docs/coupling.md says what each means). Per class: one
+// value per class; `classes × 3`: x, y, z per class, row-major; the `kernel_*` figures
+// (only with the coupling's `kernel` option) are sums over the replicas, (classes ×
+// classes) row-major, whose standard errors are NaN. Its figures (name [unit], values;
+// checked against the library by capi/tests/figure_names.rs):
+//   number_rate [1/(m^3 s)], classes
+//   mass_rate [kg/(m^3 s)], classes
+//   momentum_rate [N/m^3], classes × 3
+//   number_density [1/m^3], classes
+//   mass_density [kg/m^3], classes
+//   velocity [m/s], classes × 3
+//   temperature [K], classes
+//   class_granular_temperature [m^2/s^2], classes
+//   class_granular_temperature_axes [m^2/s^2], classes × 3
+//   present [replicas], classes
+//   granular_replicas [replicas], classes
+//   fluctuation_energy_rate [W/m^3], classes
+//   thermal_energy_rate [W/m^3], classes
+//   ignored [0 or 1], classes
+//   total_number_rate [1/(m^3 s)], 1
+//   granular_temperature [m^2/s^2], 1
+//   gas_momentum_rate [N/m^3], 3
+//   force_work_rate [W/m^3], 1
+//   heat_loss_rate [W/m^3], 1
+//   reaction_heat_rate [W/m^3], 1
+//   dissipation_rate [W/m^3], 1
+//   fracture_energy_rate [W/m^3], 1
+//   impact_rate [1/(m^3 s)], 1
+//   bond_rate [1/(m^3 s)], 1
+//   bounce_rate [1/(m^3 s)], 1
+//   fragment_rate [1/(m^3 s)], 1
+//   bodies [bodies per box], 1
+//   kernel_exposure [s/m^3], classes × classes
+//   kernel_bonds [impacts], classes × classes
+//   kernel_bounces [impacts], classes × classes
+//   kernel_fragments [impacts], classes × classes
 typedef struct AggloOutput AggloOutput;
 
 // How each cell's boxes are made. Start from `agglo_coupling_options_default()` and
@@ -78,7 +123,9 @@ typedef struct AggloCouplingOptions {
   // With `bodies` = 0: bodies enough that the cell's total impact rate has this
   // relative standard error (0 < target_se < 1), clamped to [min_bodies, max_bodies].
   double target_se;
+  // The fewest bodies per box `target_se` may choose (with `bodies` = 0), ≥ 1.
   uint32_t min_bodies;
+  // The most bodies per box `target_se` may choose (with `bodies` = 0), ≥ `min_bodies`.
   uint32_t max_bodies;
   // Replica boxes K per cell and macro step (independent seeds), ≥ 1.
   uint32_t replicas;
@@ -109,7 +156,11 @@ typedef struct AggloGas {
   // One of the `AGGLO_DRAG_*` values (a plain integer, so that any value C passes is
   // checked rather than trusted).
   uint32_t drag;
+  // The drag law's first parameter (see `AGGLO_DRAG_*`: τ [s], μ [Pa s] or ρ_g
+  // [kg/m³]); unused without drag.
   double drag_a;
+  // The drag law's second parameter (Epstein's thermal speed v_th [m/s]); unused
+  // otherwise.
   double drag_b;
 } AggloGas;
 
@@ -130,6 +181,7 @@ typedef struct AggloCellInput {
   // How each class's granular temperature splits over x, y, z, 3 per class (a_i ≥ 0,
   // not all 0): component i's variance is T·3a_i/(a_x + a_y + a_z). NULL: isotropic.
   const double *granular_anisotropy;
+  // The cell's gas over the step.
   struct AggloGas gas;
   // The macro time step Δt [s], > 0.
   double dt;

@@ -31,7 +31,11 @@ pub struct AggloGas {
     /// One of the `AGGLO_DRAG_*` values (a plain integer, so that any value C passes is
     /// checked rather than trusted).
     pub drag: u32,
+    /// The drag law's first parameter (see `AGGLO_DRAG_*`: τ [s], μ [Pa s] or ρ_g
+    /// [kg/m³]); unused without drag.
     pub drag_a: f64,
+    /// The drag law's second parameter (Epstein's thermal speed v_th [m/s]); unused
+    /// otherwise.
     pub drag_b: f64,
 }
 
@@ -54,6 +58,7 @@ pub struct AggloCellInput {
     /// How each class's granular temperature splits over x, y, z, 3 per class (a_i ≥ 0,
     /// not all 0): component i's variance is T·3a_i/(a_x + a_y + a_z). NULL: isotropic.
     pub granular_anisotropy: *const f64,
+    /// The cell's gas over the step.
     pub gas: AggloGas,
     /// The macro time step Δt [s], > 0.
     pub dt: f64,

@@ -22,7 +22,9 @@ pub struct AggloCouplingOptions {
     /// With `bodies` = 0: bodies enough that the cell's total impact rate has this
     /// relative standard error (0 < target_se < 1), clamped to [min_bodies, max_bodies].
     pub target_se: f64,
+    /// The fewest bodies per box `target_se` may choose (with `bodies` = 0), ≥ 1.
     pub min_bodies: u32,
+    /// The most bodies per box `target_se` may choose (with `bodies` = 0), ≥ `min_bodies`.
     pub max_bodies: u32,
     /// Replica boxes K per cell and macro step (independent seeds), ≥ 1.
     pub replicas: u32,

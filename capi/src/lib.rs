@@ -31,6 +31,8 @@
 //!   macro step and its input (and state), never on the thread count or the order of
 //!   the cells in a batch.
 
+#![warn(missing_docs)]
+
 // In the order of a cell's life, which is the order cbindgen writes them into the header
 // (kept apart so that rustfmt does not sort them): make a coupling, advance cells, read
 // their outputs, keep or restore their states, then the errors.

@@ -1,16 +1,8 @@
 //! A cell's output (micro → macro) read by name: every figure of
 //! [`agglo::subgrid::CellOutput::columns`] as a mean and a standard error per value.
-//!
-//! Names (docs/coupling.md lists their units): per class `number_rate`, `mass_rate`,
-//! `momentum_rate` (3 per class), `number_density`, `mass_density`, `velocity` (3 per
-//! class), `temperature`, `class_granular_temperature`, `present`, `granular_replicas`,
-//! `fluctuation_energy_rate`, `thermal_energy_rate`, `ignored` (1 for a trace class not
-//! lifted); per cell `total_number_rate`, `granular_temperature`, `gas_momentum_rate`
-//! (3), `force_work_rate`,
-//! `heat_loss_rate`, `reaction_heat_rate`, `dissipation_rate`, `fracture_energy_rate`,
-//! `impact_rate`, `bond_rate`, `bounce_rate`, `fragment_rate`, `bodies`; with the
-//! coupling's `kernel` option also `kernel_exposure`, `kernel_bonds`, `kernel_bounces`,
-//! `kernel_fragments` (classes × classes, pooled sums: standard errors NaN).
+//! The figures are listed once for C readers, on [`AggloOutput`] (so in the header), and
+//! in docs/coupling.md's "Figure names"; tests/figure_names.rs checks both against the
+//! library's columns.
 
 use std::ffi::{CString, c_char};
 
@@ -19,6 +11,43 @@ use agglo::subgrid::{CellOutput, Column};
 use crate::error::{AggloStatus, Failure, guard, handle, out_pointer, text};
 
 /// A cell's output (opaque): made by the advance calls, freed by `agglo_output_free`.
+/// Each figure is the mean over the K replica boxes and its standard error, read by
+/// name with `agglo_output_get` (docs/coupling.md says what each means). Per class: one
+/// value per class; `classes × 3`: x, y, z per class, row-major; the `kernel_*` figures
+/// (only with the coupling's `kernel` option) are sums over the replicas, (classes ×
+/// classes) row-major, whose standard errors are NaN. Its figures (name [unit], values;
+/// checked against the library by capi/tests/figure_names.rs):
+///   number_rate [1/(m^3 s)], classes
+///   mass_rate [kg/(m^3 s)], classes
+///   momentum_rate [N/m^3], classes × 3
+///   number_density [1/m^3], classes
+///   mass_density [kg/m^3], classes
+///   velocity [m/s], classes × 3
+///   temperature [K], classes
+///   class_granular_temperature [m^2/s^2], classes
+///   class_granular_temperature_axes [m^2/s^2], classes × 3
+///   present [replicas], classes
+///   granular_replicas [replicas], classes
+///   fluctuation_energy_rate [W/m^3], classes
+///   thermal_energy_rate [W/m^3], classes
+///   ignored [0 or 1], classes
+///   total_number_rate [1/(m^3 s)], 1
+///   granular_temperature [m^2/s^2], 1
+///   gas_momentum_rate [N/m^3], 3
+///   force_work_rate [W/m^3], 1
+///   heat_loss_rate [W/m^3], 1
+///   reaction_heat_rate [W/m^3], 1
+///   dissipation_rate [W/m^3], 1
+///   fracture_energy_rate [W/m^3], 1
+///   impact_rate [1/(m^3 s)], 1
+///   bond_rate [1/(m^3 s)], 1
+///   bounce_rate [1/(m^3 s)], 1
+///   fragment_rate [1/(m^3 s)], 1
+///   bodies [bodies per box], 1
+///   kernel_exposure [s/m^3], classes × classes
+///   kernel_bonds [impacts], classes × classes
+///   kernel_bounces [impacts], classes × classes
+///   kernel_fragments [impacts], classes × classes
 pub struct AggloOutput {
     output: CellOutput,
     columns: Vec<(CString, Column)>,

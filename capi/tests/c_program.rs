@@ -31,6 +31,29 @@ fn the_c_example_compiles_runs_and_its_checks_hold() {
     }
 }
 
+/// The short example (`examples/one_cell.c`, the first C a reader sees) compiles with
+/// warnings as errors, runs its three steps and its one check holds (monomers stick into
+/// larger bodies: the monomer rate is negative, the larger class's positive).
+#[test]
+fn the_short_c_example_compiles_and_runs() {
+    let source = crate_dir().join("examples/one_cell.c");
+    let lines = std::fs::read_to_string(&source).unwrap().lines().count();
+    // The bound (REBOUND's drag example is 70 lines): short enough to read at once.
+    assert!(lines <= 80, "examples/one_cell.c has {lines} lines");
+    let build = tempfile::tempdir().unwrap();
+    let exe = compile_c("examples/one_cell.c", build.path());
+    let scenario = crate_dir().join("../scenarios/ballistic_aggregation.json");
+    let run = c_command(&exe).arg(&scenario).output().unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "the C program failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(stdout.matches("dn/dt = ").count(), 3, "{stdout}");
+    assert!(stdout.ends_with("done\n"), "{stdout}");
+}
+
 /// NULLs, wrong lengths and unknown names are refused with a message naming the
 /// argument, never a crash.
 #[test]

@@ -74,6 +74,8 @@ pub const STEFAN_BOLTZMANN: f64 = 5.670374419e-8;
     schemars::JsonSchema,
 )]
 #[serde(rename_all = "snake_case")]
+/// How the cooling ODE of each body is integrated over a step (`physics.cooling`,
+/// docs/model.md §8).
 pub enum CoolingMethod {
     /// No cooling system.
     Off,

@@ -34,9 +34,17 @@ pub enum Flight {
     /// Straight line at constant velocity.
     Ballistic,
     /// Uniform acceleration `g` [m/s²].
-    Uniform { g: DVec3 },
+    Uniform {
+        /// g [m/s²].
+        g: DVec3,
+    },
     /// Linear drag with relaxation time `tau` [s] toward `terminal` = u + g τ [m/s].
-    Drag { terminal: DVec3, tau: f64 },
+    Drag {
+        /// The terminal velocity u + g τ [m/s].
+        terminal: DVec3,
+        /// τ [s].
+        tau: f64,
+    },
 }
 
 impl Flight {

@@ -21,9 +21,13 @@ use glam::DVec3;
 /// `gap` = |d| − b_i − b_j.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NearPair {
+    /// Index of the first body.
     pub i: u32,
+    /// Index of the second body.
     pub j: u32,
+    /// r_j − r_i for this image [m].
     pub d: DVec3,
+    /// |d| − b_i − b_j [m] (negative: overlap).
     pub gap: f64,
 }
 

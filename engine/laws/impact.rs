@@ -28,10 +28,15 @@ pub struct PairBody {
 /// Material and model constants the pair solve needs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PairModel {
+    /// Contact-area fraction at full rebound (e = 1).
     pub a0: f64,
+    /// Contact-area fraction at adhesion (e = 0).
     pub af: f64,
+    /// Impact-duration scale β.
     pub beta: f64,
+    /// The impact-duration law.
     pub duration: DurationLaw,
+    /// μ = μ0 (1 − e) when true (P02), μ = μ0 otherwise (P04).
     pub friction_scales_with_adhesion: bool,
     /// μ0.
     pub mu0: f64,
@@ -47,6 +52,7 @@ pub struct PairModel {
     pub tol: f64,
     /// Plain iterations before the fallback.
     pub max_iterations: u32,
+    /// How the fixed point is found.
     pub solver: SolverKind,
     /// Which hardness the pair bonds against (a reading, docs/model.md §5.1 step 7).
     pub pair_hardness: PairHardness,
@@ -63,9 +69,13 @@ pub struct PairModel {
 pub struct Trial {
     /// G(e).
     pub g: f64,
+    /// Body i's velocity after the impact [m/s].
     pub velocity_i: DVec3,
+    /// Body j's velocity after the impact [m/s].
     pub velocity_j: DVec3,
+    /// Body i's temperature after the impact [K].
     pub temperature_i: f64,
+    /// Body j's temperature after the impact [K].
     pub temperature_j: f64,
     /// Kinetic energy lost by the pair W [J].
     pub dissipated: f64,
@@ -98,22 +108,29 @@ pub enum SolveMethod {
 pub struct PairOutcome {
     /// Restitution e* (0 when bonded).
     pub restitution: f64,
+    /// True when the pair bonds.
     pub bonded: bool,
+    /// Body i's velocity after the impact [m/s].
     pub velocity_i: DVec3,
+    /// Body j's velocity after the impact [m/s].
     pub velocity_j: DVec3,
+    /// Body i's temperature after the impact [K].
     pub temperature_i: f64,
+    /// Body j's temperature after the impact [K].
     pub temperature_j: f64,
     /// Kinetic energy lost by the pair [J].
     pub dissipated: f64,
     /// Reaction heat added to the pair, 2 α a_c [J].
     pub reaction_heat: f64,
-    /// Kinetic energy each body lost in the pair's centre-of-mass frame [J].
+    /// Kinetic energy body i lost in the pair's centre-of-mass frame [J].
     pub lost_i: f64,
+    /// Kinetic energy body j lost in the pair's centre-of-mass frame [J].
     pub lost_j: f64,
     /// Plain fixed-point iterations used.
     pub iterations: u32,
     /// Bracketed iterations used (0 without fallback).
     pub fallback_iterations: u32,
+    /// How the fixed point was found.
     pub method: SolveMethod,
 }
 
@@ -261,9 +278,13 @@ pub const ABSOLUTE_FLOOR: f64 = 1e-15;
 /// Result of finding e* alone (no velocities).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FixedPoint {
+    /// The restitution e* = G(e*).
     pub e: f64,
+    /// Plain fixed-point iterations used.
     pub iterations: u32,
+    /// Bracketed iterations used (0 without fallback).
     pub fallback_iterations: u32,
+    /// How it was found.
     pub method: SolveMethod,
 }
 
@@ -790,6 +811,7 @@ pub enum Separation {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
+/// The impact-duration law δτ(e, v) (`impact.duration`, docs/model.md §5).
 pub enum DurationLaw {
     /// δτ = (1 + e) β min(b) / ((v_in − v_jn)/2)  (P04 (4.10)).
     #[default]
@@ -800,6 +822,7 @@ pub enum DurationLaw {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
+/// How a pair's fixed point e* = G(e*) is found (`impact.solver`, docs/model.md §5).
 pub enum SolverKind {
     /// The papers' fixed-point iteration, with a bracketed fallback that cannot fail.
     #[default]

@@ -58,21 +58,29 @@ impl Simulation {
     pub fn pipeline(&self) -> &Pipeline {
         &self.pipeline
     }
+    /// The ECS world: every body and resource (read it for what this type has no
+    /// accessor for).
     pub fn world(&self) -> &World {
         &self.world
     }
+    /// The world, to change: a change outside the step's stages is the caller's to keep
+    /// consistent (the event core's predictions, the ledgers).
     pub fn world_mut(&mut self) -> &mut World {
         &mut self.world
     }
+    /// The clock now: time [s], step count, last Δt [s].
     pub fn clock(&self) -> SimClock {
         *self.world.resource::<SimClock>()
     }
+    /// The event counters so far (impacts, bonds, bounces, fragmentations, …).
     pub fn counters(&self) -> Counters {
         *self.world.resource::<Counters>()
     }
+    /// The energy ledger so far: every term booked [J].
     pub fn ledger(&self) -> EnergyLedger {
         *self.world.resource::<EnergyLedger>()
     }
+    /// The invariant references at t = 0 and the worst errors seen so far.
     pub fn invariants(&self) -> InvariantReport {
         self.world.resource::<InvariantReport>().clone()
     }

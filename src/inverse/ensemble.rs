@@ -301,19 +301,19 @@ pub struct SampleResult {
 /// A sample's result, or why it failed.
 pub type SampleOutcome = Result<SampleResult, SampleFailure>;
 
-/// Run one sample: build its scene, run it, measure it.
+/// Run one sample: build its scene, run it, measure it (through [`crate::run::Run`],
+/// writing no file).
 pub fn run_sample(
     scenario: Result<Scenario, crate::error::ScenarioError>,
     keep_radii: bool,
 ) -> SampleOutcome {
-    let sim = scenario
-        .map_err(crate::error::SimError::from)
-        .and_then(|s| {
-            let mut sim = crate::plugins::simulation(&s)?;
-            sim.run()?;
-            Ok(sim)
-        })
-        .map_err(|e| SampleFailure(e.to_string()))?;
+    let scenario =
+        scenario.map_err(|e| SampleFailure(crate::error::SimError::from(e).to_string()))?;
+    let (end, outcome) =
+        crate::run::Run::complete(crate::run::RunPlan::unwritten(scenario), Vec::new())
+            .map_err(|e| SampleFailure(crate::run::failure_text(&e)))?;
+    outcome.map_err(|e| SampleFailure(e.to_string()))?;
+    let sim = end.sim;
     let bodies = sim.bodies();
     let material = sim.material();
     let growth = Growth::of(&bodies, material.rho, sim.primary().radius);

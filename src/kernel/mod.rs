@@ -27,6 +27,7 @@
 mod accumulator;
 mod estimate;
 mod grid;
+mod observer;
 pub mod write;
 
 pub use accumulator::{
@@ -37,12 +38,12 @@ pub use estimate::{
     Array, ArraySpec, CONVENTION, Data, Dim, Estimate, KERNEL_ARRAYS, ZERO_COUNT_UPPER_95, wilson,
 };
 pub use grid::{GridError, GridKind, MAX_CLASSES, MassGrid, dustpy_mass_grid};
+pub use observer::KernelObserver;
 
 use std::ops::ControlFlow;
 
-use anyhow::Context;
-
 use crate::farm::Workers;
+use crate::run::{Run, RunPlan};
 use crate::scenario::Scenario;
 use crate::schedule::Simulation;
 
@@ -72,8 +73,9 @@ pub fn seeds(scenario: &Scenario, count: u32) -> Vec<u64> {
         .collect()
 }
 
-/// The scenario's simulation with the built-in physics, collecting what an
-/// [`Accumulator`] reads.
+/// The scenario's simulation with the built-in physics and the registered extensions,
+/// collecting what an [`Accumulator`] reads: the subgrid's replica boxes build through
+/// it (`agglo kernel`'s runs go through [`crate::run::Run`] with a [`KernelObserver`]).
 pub fn simulation(scenario: &Scenario) -> Result<Simulation, crate::error::SimError> {
     let mut builder = crate::plugins::builder(scenario)?;
     subscribe(&mut builder);
@@ -90,9 +92,9 @@ pub enum Accumulating {
 }
 
 /// Step `sim` to its end time feeding `acc` after every step, as one run of its
-/// ensemble ([`Accumulator::begin`] to [`Accumulator::end_run`]): the loop `agglo
-/// kernel` and the subgrid's boxes share. `sim` must collect what the accumulator reads
-/// ([`simulation`]).
+/// ensemble ([`Accumulator::begin`] to [`Accumulator::end_run`]): the subgrid's boxes'
+/// loop, the same steps as [`KernelObserver`] takes in a [`crate::run::Run`]. `sim` must
+/// collect what the accumulator reads ([`simulation`]).
 pub fn accumulate(sim: &mut Simulation, acc: &mut Accumulator) -> Result<(), Accumulating> {
     acc.begin(sim).map_err(Accumulating::Kernel)?;
     let mut failed = None;
@@ -121,15 +123,16 @@ pub fn measure_one(
     let mut scenario = scenario.clone();
     scenario.seed = seed;
     sampling.check().map_err(anyhow::Error::msg)?;
-    let mut sim = simulation(&scenario).context("setting up the scene")?;
-    let mut acc = Accumulator::new(grid.clone(), window, sampling);
-    match accumulate(&mut sim, &mut acc) {
-        Ok(()) => Ok(acc),
-        Err(Accumulating::Kernel(e)) => Err(e.into()),
-        Err(Accumulating::Run(e)) => {
-            Err(anyhow::Error::new(e).context(format!("running seed {seed}")))
-        }
+    let (observer, result) = KernelObserver::new(Accumulator::new(grid.clone(), window, sampling));
+    let (end, outcome) = Run::complete(RunPlan::unwritten(scenario), vec![Box::new(observer)])?;
+    // The accumulator's refusal first: it stopped the run.
+    if let Some(e) = end.output_error {
+        return Err(e);
     }
+    outcome.map_err(|e| anyhow::Error::new(e).context(format!("running seed {seed}")))?;
+    result
+        .take()
+        .ok_or_else(|| anyhow::anyhow!("seed {seed}: the run ended without its kernel"))
 }
 
 /// Run `scenario` once per seed on `workers` and pool the runs in seed order (so the

@@ -1,6 +1,6 @@
 //! The tables a run writes while it runs — `--series`, `--sizes`, `--snapshots` on the
 //! schedule of `output.sampling` (or the flags), `--collisions` after every step —
-//! driven from `agglo run`'s observer of `Simulation::run_with`.
+//! an observer ([`crate::observer::Observer`]) of a [`crate::run::Run`].
 //!
 //! Between samples the observer costs O(1) per step (a look at the clock). At a sample
 //! the bodies are read once through `Simulation::bodies()`, which on the event core
@@ -44,23 +44,12 @@ impl TablePaths {
             && self.collisions.is_none()
     }
 
-    /// The scenario's simulation with the built-in physics, collecting what these tables
-    /// read (the impacts, for `collisions`).
-    pub fn simulation(&self, scenario: &Scenario) -> Result<Simulation, crate::error::SimError> {
-        self.builder(scenario)?.build()
-    }
-
-    /// The builder of [`TablePaths::simulation`], for a caller that adds to the scene
-    /// before it is built.
-    pub fn builder(
-        &self,
-        scenario: &Scenario,
-    ) -> Result<crate::schedule::SimBuilder, crate::error::SimError> {
-        let mut builder = crate::plugins::builder(scenario)?;
+    /// Subscribe what these tables read (the impacts, for `collisions`) on a scene's
+    /// builder; [`crate::run::Run`] does it for the tables of its plan.
+    pub fn subscribe(&self, builder: &mut crate::schedule::SimBuilder) {
         if self.collisions.is_some() {
-            collisions::subscribe(&mut builder);
+            collisions::subscribe(builder);
         }
-        Ok(builder)
     }
 }
 
@@ -128,7 +117,8 @@ impl RunTables {
                 .is_none()
         {
             anyhow::bail!(
-                "--collisions needs the impacts: build the simulation with TablePaths::simulation"
+                "--collisions needs the impacts: run through agglo::run::Run (or subscribe them with \
+                 TablePaths::subscribe)"
             );
         }
         let collisions = paths

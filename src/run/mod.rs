@@ -9,6 +9,13 @@
 //! tables closed, the final state and summary written, whatever the outcome — nothing
 //! is lost when a run fails or is stopped.
 //!
+//! It is the one door to a run: the CLI, Python, the ensembles of the inverse problem,
+//! the studies and `agglo kernel` all build and step their scenes here — the built-in
+//! physics, the registered extensions ([`crate::plugins`]) and what the observers
+//! subscribe. A driver that writes no file starts from [`RunPlan::unwritten`] and hands
+//! its own observers to [`Run::start_observed`] (or [`Run::complete`], start to finish
+//! in one call).
+//!
 //! ```no_run
 //! use agglo::prelude::*;
 //! use agglo::run::{Run, RunPlan, Until};
@@ -80,6 +87,11 @@ pub struct RunPlan {
     /// Draw the progress line on stderr (indicatif draws nothing where stderr is not a
     /// terminal).
     pub progress: bool,
+    /// One run of many (an ensemble, a study, `agglo kernel`; [`RunPlan::unwritten`]):
+    /// its driver checks the memory of all the runs it holds at once and reports their
+    /// failures itself, so the run neither checks its own memory nor warns on stderr
+    /// about clamped steps.
+    pub one_of_many: bool,
 }
 
 /// A checkpoint to continue from, and the file it was read from.
@@ -103,11 +115,32 @@ impl RunPlan {
             command_line: String::new(),
             live: None,
             progress: false,
+            one_of_many: false,
             resume: None,
             tables,
             step_tables: Vec::new(),
             scenario,
         })
+    }
+
+    /// A run of many that writes no file, whatever the scenario's `output` section says:
+    /// each run of an ensemble, a study or `agglo kernel`, whose driver reads the
+    /// simulation or its own observers ([`Run::start_observed`]) instead.
+    pub fn unwritten(scenario: Scenario) -> Self {
+        Self {
+            summary: None,
+            final_state: None,
+            recording: None,
+            restart: None,
+            command_line: String::new(),
+            live: None,
+            progress: false,
+            one_of_many: true,
+            resume: None,
+            tables: TablePaths::default(),
+            step_tables: Vec::new(),
+            scenario,
+        }
     }
 
     /// The names of every table a run can write, as [`RunPlan::set_table`] takes them
@@ -290,13 +323,54 @@ impl Run {
         stop: Arc<AtomicBool>,
         customise: impl FnOnce(&mut crate::schedule::SimBuilder) -> anyhow::Result<()>,
     ) -> anyhow::Result<Self> {
+        Self::open(plan, stop, Vec::new(), customise)
+    }
+
+    /// [`Run::start`] watched also by a driver's `observers` (the kernel accumulator of
+    /// `agglo kernel`): each subscribes before the scene is built and begins on the built
+    /// scene ([`Observer::subscribe`], [`Observer::begin`]), is fed after the plan's files
+    /// and finished with them; its result comes back through its
+    /// [`crate::observer::Handback`].
+    pub fn start_observed(
+        plan: RunPlan,
+        stop: Arc<AtomicBool>,
+        observers: Vec<Box<dyn Observer>>,
+    ) -> anyhow::Result<Self> {
+        Self::open(plan, stop, observers, |_| Ok(()))
+    }
+
+    /// Start `plan` with `observers` (as [`Run::start_observed`]), advance it to T and
+    /// finish it: a run of an ensemble, a study or `agglo kernel` in one call. Returns
+    /// what the run left and its own outcome (an observer's error is in
+    /// [`RunEnd::output_error`]); an error when the scene cannot be built or an observer
+    /// cannot begin.
+    pub fn complete(
+        plan: RunPlan,
+        observers: Vec<Box<dyn Observer>>,
+    ) -> anyhow::Result<(RunEnd, Result<(), SimError>)> {
+        let mut run = Self::start_observed(plan, Arc::default(), observers)?;
+        let outcome = run.advance(Until::End, &mut |_| ControlFlow::Continue(()));
+        Ok((run.finish(&outcome), outcome))
+    }
+
+    /// Build the scene (built-ins, registered extensions, every observer's
+    /// subscriptions, then `customise`), resume it, begin the driver's `driven`
+    /// observers and open the plan's outputs.
+    fn open(
+        plan: RunPlan,
+        stop: Arc<AtomicBool>,
+        mut driven: Vec<Box<dyn Observer>>,
+        customise: impl FnOnce(&mut crate::schedule::SimBuilder) -> anyhow::Result<()>,
+    ) -> anyhow::Result<Self> {
         let scenario = &plan.scenario;
         plan.check_paths()?;
         // Before anything is allocated: does the scene fit in memory (recorded or not)?
-        if let Some(warning) =
-            crate::memory::MemoryEstimate::of_run(scenario, plan.recording.is_some())
-                .check()
-                .map_err(anyhow::Error::msg)?
+        // (A run of many is checked by its driver, with the others held at once.)
+        if !plan.one_of_many
+            && let Some(warning) =
+                crate::memory::MemoryEstimate::of_run(scenario, plan.recording.is_some())
+                    .check()
+                    .map_err(anyhow::Error::msg)?
         {
             eprintln!("{warning}");
         }
@@ -308,12 +382,13 @@ impl Run {
             }
             None => None,
         };
-        let mut builder = plan
-            .tables
-            .builder(scenario)
-            .context("setting up the scene")?;
+        let mut builder = crate::plugins::builder(scenario).context("setting up the scene")?;
+        plan.tables.subscribe(&mut builder);
         for (table, _) in &plan.step_tables {
             (table.subscribe)(&mut builder);
+        }
+        for observer in &driven {
+            observer.subscribe(&mut builder);
         }
         customise(&mut builder)?;
         let mut sim = builder.build().context("setting up the scene")?;
@@ -321,11 +396,14 @@ impl Run {
             sim.resume(&resume.snapshot)
                 .with_context(|| format!("resuming from {}", resume.file.display()))?;
         }
+        for observer in &mut driven {
+            observer.begin(&sim)?;
+        }
         let layout = match &plan.recording {
             Some(path) => Some(write_layout_beside(path, scenario)?),
             None => None,
         };
-        let observers = open_observers(&plan, &sim, live_server, &stop)?;
+        let observers = open_observers(&plan, &sim, live_server, &stop, driven)?;
         Ok(Self {
             scenario: plan.scenario,
             sim,
@@ -444,14 +522,16 @@ impl Run {
 
 /// The outputs `plan` asks for, open on the built `sim` (each table takes its t = 0
 /// sample), in the order they are fed and finished: the progress line and the warnings
-/// first, the files, then the live view last (with a client connected it may keep
-/// serving the final state a while, and every file must be written before that wait),
-/// and a test's switches (which act once the step's outputs are written).
+/// first, the files, a driver's `driven` observers, then the live view last (with a
+/// client connected it may keep serving the final state a while, and every file must be
+/// written before that wait), and a test's switches (which act once the step's outputs
+/// are written).
 fn open_observers(
     plan: &RunPlan,
     sim: &Simulation,
     live_server: Option<(Server, LiveOptions)>,
     stop: &Arc<AtomicBool>,
+    driven: Vec<Box<dyn Observer>>,
 ) -> anyhow::Result<Vec<Box<dyn Observer>>> {
     let scenario = &plan.scenario;
     let mut observers: Vec<Box<dyn Observer>> = Vec::new();
@@ -462,7 +542,9 @@ fn open_observers(
     if let Some(p) = progress {
         observers.push(Box::new(p));
     }
-    if let Some(w) = ClampWarnings::new(scenario, sim, bar) {
+    if !plan.one_of_many
+        && let Some(w) = ClampWarnings::new(scenario, sim, bar)
+    {
         observers.push(Box::new(w));
     }
     // Created after the caller's stop handlers: once the file exists, a stop finalises it.
@@ -491,6 +573,7 @@ fn open_observers(
     if let Some(path) = &plan.summary {
         observers.push(Box::new(end_files::SummaryFile(path.clone())));
     }
+    observers.extend(driven);
     if let Some((server, options)) = live_server {
         let beside = plan.recording.as_deref().or(plan.summary.as_deref());
         observers.push(Box::new(start_live(
@@ -523,6 +606,16 @@ fn start_live(
     crate::record::layout::write_fitted_layout(&layout, scenario.domain.half_width)?;
     announce_live(&server, &layout);
     LiveRun::start(server, options, sim, stop)
+}
+
+/// A run's error as ensembles and studies record it: a scene the engine refused reads as
+/// the engine's [`SimError`] alone (without the "setting up the scene" that
+/// [`Run::start`] puts before it), anything else with its whole chain.
+pub fn failure_text(e: &anyhow::Error) -> String {
+    match e.downcast_ref::<SimError>() {
+        Some(sim) => sim.to_string(),
+        None => format!("{e:#}"),
+    }
 }
 
 /// Tell the user where a live server listens and where its layout is (stderr).

@@ -454,11 +454,12 @@ pub fn measure(scenario: &Scenario, repeats: usize) -> anyhow::Result<Measuremen
     let mut walls = Vec::new();
     let mut first: Option<Measurement> = None;
     for _ in 0..repeats.max(1) {
-        let mut sim = crate::plugins::simulation(scenario)?;
-        let outcome = sim.run();
+        let plan = crate::run::RunPlan::unwritten(scenario.clone());
+        let (end, outcome) = crate::run::Run::complete(plan, Vec::new())?;
+        let sim = end.sim;
         walls.push(sim.wall_seconds());
         if first.is_none() {
-            let s = sim.summary();
+            let s = end.summary;
             let b0 = sim.primary().radius;
             let bodies = sim.bodies();
             first = Some(Measurement {

@@ -432,8 +432,11 @@ pub fn kinematic_misses(
     for k in 0..seeds.max(1) {
         let mut s = scenario.clone();
         s.seed = scenario.seed.wrapping_add(k as u64);
-        let sim = crate::plugins::simulation(&s)?;
-        let bodies = sim.bodies();
+        let run = crate::run::Run::start(
+            crate::run::RunPlan::unwritten(s.clone()),
+            Default::default(),
+        )?;
+        let bodies = run.sim().bodies();
         for (t_in, t_closest) in contact_windows(&bodies, s.domain.half_width) {
             for m in out.iter_mut() {
                 if t_in <= m.dt {
@@ -546,10 +549,10 @@ pub fn run_misses(
         s
     };
     let impacts = |s: &Scenario| -> anyhow::Result<u64> {
-        let mut sim = crate::plugins::simulation(s)?;
+        let plan = crate::run::RunPlan::unwritten(s.clone());
         // A failed run still reports the impacts it resolved.
-        let _ = sim.run();
-        Ok(sim.counters().impacts)
+        let (end, _outcome) = crate::run::Run::complete(plan, Vec::new())?;
+        Ok(end.sim.counters().impacts)
     };
     misses_fit(seeds, dts.len() + factors.len()).map_err(anyhow::Error::msg)?;
     let seeds: Vec<u64> = (0..seeds.max(1) as u64)

@@ -20,9 +20,19 @@ use super::cells::prefetch;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum EventKind {
     /// Contact with the body in `slot`, whose event counter was `counter` when predicted.
-    Contact { slot: u32, counter: u32 },
+    Contact {
+        /// The partner's slot.
+        slot: u32,
+        /// The partner's event counter at the prediction.
+        counter: u32,
+    },
     /// The owner leaves its cell through face `axis` (0..3) towards `+1` or `-1`.
-    Crossing { axis: u8, step: i8 },
+    Crossing {
+        /// The face's axis, 0..3 (x, y, z).
+        axis: u8,
+        /// The direction, `+1` or `-1`.
+        step: i8,
+    },
     /// Predictions through periodic images hold only while partners have moved less
     /// than a fraction of the box relative to the owner: predict it again then.
     Refresh,
@@ -33,6 +43,7 @@ pub enum EventKind {
 pub struct Event {
     /// Absolute simulated time [s].
     pub time: f64,
+    /// What happens then.
     pub kind: EventKind,
 }
 
@@ -61,6 +72,7 @@ impl Calendar {
         self.heap.len()
     }
 
+    /// True when no event is pending.
     pub fn is_empty(&self) -> bool {
         self.heap.is_empty()
     }

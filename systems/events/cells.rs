@@ -137,7 +137,12 @@ struct Place {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Partner {
     /// Through the cell offset: separation = offset·w + rel_j − rel_i at this level.
-    Cell { level: u8, offset: [i8; 3] },
+    Cell {
+        /// The grid level both bodies are compared at.
+        level: u8,
+        /// The partner's cell relative to the owner's, per axis (−1, 0 or +1).
+        offset: [i8; 3],
+    },
     /// A whole-box pair: every periodic image must be considered.
     AnyImage,
 }

@@ -132,7 +132,9 @@ enum Scan {
 /// One body's trajectory as the event core sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct Trajectory {
+    /// The body's entity.
     pub entity: Entity,
+    /// The body's stable id ([`ParticleId`]).
     pub id: u64,
     /// Position at `t_ref`, wrapped into [−D, D) [m].
     pub position: DVec3,
@@ -223,6 +225,8 @@ pub struct EventCore {
     predictions_at_renumber: u64,
     /// Renumber slots periodically (on by default; tests show that it changes no result).
     renumbering: bool,
+    /// What the core has counted so far: crossings, stale events, predictions, pair
+    /// tests, deep overlaps, renumberings.
     pub stats: EventStats,
 }
 

@@ -52,13 +52,21 @@ const SIMULTANEOUS: f64 = 1e-13;
 #[derive(QueryData)]
 #[query_data(mutable)]
 pub struct DueBody {
+    /// The body's stable id ([`ParticleId`]).
     pub id: &'static ParticleId,
+    /// Position [m].
     pub position: &'static mut Position,
+    /// Velocity [m/s].
     pub velocity: &'static mut Velocity,
+    /// Mass [kg].
     pub mass: &'static Mass,
+    /// Radius [m].
     pub radius: &'static Radius,
+    /// Temperature θ [K].
     pub temperature: &'static mut Temperature,
+    /// Hardness H [Pa].
     pub hardness: &'static mut Hardness,
+    /// The time the body's state is at [s] (event core: bodies are brought forward lazily).
     pub local_time: &'static mut LocalTime,
 }
 
@@ -67,11 +75,17 @@ type LazyQuery<'w, 's> = Query<'w, 's, DueBody, With<Particle>>;
 /// What a body's predicted flight is made from: its state at its reference time.
 #[derive(QueryData)]
 pub struct FlightData {
+    /// The body's stable id ([`ParticleId`]).
     pub id: &'static ParticleId,
+    /// Position [m].
     pub position: &'static Position,
+    /// Velocity [m/s].
     pub velocity: &'static Velocity,
+    /// Mass [kg].
     pub mass: &'static Mass,
+    /// Radius [m].
     pub radius: &'static Radius,
+    /// The time the body's state is at [s] (event core: bodies are brought forward lazily).
     pub local_time: &'static LocalTime,
 }
 

@@ -80,11 +80,17 @@ pub fn pair_model(material: &Material, settings: &ImpactModel) -> PairModel {
 #[derive(QueryData)]
 #[query_data(mutable)]
 pub struct ImpactBody {
+    /// Position [m].
     pub position: &'static mut Position,
+    /// Velocity [m/s].
     pub velocity: &'static mut Velocity,
+    /// Mass [kg].
     pub mass: &'static Mass,
+    /// Radius [m].
     pub radius: &'static Radius,
+    /// Temperature θ [K].
     pub temperature: &'static mut Temperature,
+    /// Hardness H [Pa].
     pub hardness: &'static mut Hardness,
 }
 
@@ -133,6 +139,7 @@ pub struct CollapseGuard {
 }
 
 impl CollapseGuard {
+    /// The guard with collapse time `t_c` [s] (0: off) and no impact seen yet.
     pub fn new(t_c: f64) -> Self {
         Self {
             t_c,

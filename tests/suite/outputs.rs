@@ -477,23 +477,15 @@ fn run_set_overrides_fields_and_is_checked_like_the_file() {
     assert!(!typo.status.success() && err.contains("ned"), "{err}");
 }
 
-/// Run `s` with only the collision log, at `path`; the summary.
+/// Run `s` through the door of every run with only the collision log, at `path`; the
+/// summary.
 fn run_logging_collisions(s: &Scenario, path: &Path) -> Summary {
-    let paths = TablePaths {
-        collisions: Some(path.to_path_buf()),
-        ..Default::default()
-    };
-    let mut sim = paths.simulation(s).unwrap();
-    let mut tables = RunTables::open(&paths, s, &sim).unwrap().unwrap();
-    sim.run_with(|sim| {
-        tables.observe(sim).unwrap();
-        ControlFlow::Continue(())
-    })
-    .unwrap();
-    let report = tables.finish(&sim).unwrap();
-    let summary = sim.summary();
-    assert_eq!(report.collisions, summary.counters.impacts);
-    summary
+    let mut plan = agglo::run::RunPlan::unwritten(s.clone());
+    plan.tables.collisions = Some(path.to_path_buf());
+    let (end, outcome) = agglo::run::Run::complete(plan, Vec::new()).unwrap();
+    outcome.unwrap();
+    assert!(end.output_error.is_none(), "{:?}", end.output_error);
+    end.summary
 }
 
 #[test]

@@ -242,9 +242,11 @@ pub fn scenario_capped(
 /// Run one scenario and measure it.
 pub fn measure(scenario: &Scenario) -> Result<RunStats, String> {
     let start = std::time::Instant::now();
-    let mut sim = crate::plugins::simulation(scenario).map_err(|e| e.to_string())?;
-    sim.run().map_err(|e| e.to_string())?;
-    let s = sim.summary();
+    let plan = crate::run::RunPlan::unwritten(scenario.clone());
+    let (end, outcome) =
+        crate::run::Run::complete(plan, Vec::new()).map_err(|e| crate::run::failure_text(&e))?;
+    outcome.map_err(|e| e.to_string())?;
+    let s = end.summary;
     // A run that broke an invariant (e.g. explicit cooling driving θ to −∞, docs/model.md
     // §8) has no meaningful growth: it counts as failed, with the first violation.
     if let Some(first) = s.invariant_violations.first() {
