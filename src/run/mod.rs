@@ -110,19 +110,14 @@ impl RunPlan {
     pub fn new(scenario: Scenario) -> anyhow::Result<Self> {
         let tables = TableArgs::default().paths(&scenario.output)?;
         let output = &scenario.output;
+        let path = |p: &Option<String>| p.clone().map(PathBuf::from);
         Ok(Self {
-            summary: output.summary.clone().map(PathBuf::from),
-            final_state: output.final_state.clone().map(PathBuf::from),
-            recording: output.mcap.clone().map(PathBuf::from),
-            restart: None,
-            command_line: String::new(),
-            live: None,
-            progress: false,
-            one_of_many: false,
-            resume: None,
+            summary: path(&output.summary),
+            final_state: path(&output.final_state),
+            recording: path(&output.mcap),
             tables,
-            step_tables: Vec::new(),
-            scenario,
+            one_of_many: false,
+            ..Self::unwritten(scenario)
         })
     }
 
