@@ -43,6 +43,7 @@ pub mod record;
 pub mod restart;
 pub mod run;
 pub mod scenario;
+pub mod seeds;
 pub mod separate;
 pub mod study;
 // Issue 37's helper is renaming the subgrid's public items (number_rate,

@@ -27,20 +27,10 @@ use super::problem::{
     CostSpec, EnsembleRule, EnsembleSpec, FailurePolicy, Moment, SampleFailure, Tracked,
 };
 
-/// splitmix64 finaliser: a bijective 64-bit mixer.
-pub fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// Hash a sequence of words into one seed (each word mixed into the running state).
-pub fn derive_seed(words: &[u64]) -> u64 {
-    words
-        .iter()
-        .fold(0x6A09_E667_F3BC_C908, |h, &w| splitmix64(h ^ splitmix64(w)))
-}
+// Their home is crate::seeds (the live view and the kernel use them too, and importing
+// them from here tied the door to a run into a circle); kept here for the subgrid's
+// imports.
+pub use crate::seeds::{derive_seed, splitmix64};
 
 /// Scene seed of `sample` of `string` in `generation` of the run with `seed`.
 pub fn sample_seed(seed: u64, generation: usize, string: usize, sample: u32) -> u64 {

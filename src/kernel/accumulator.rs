@@ -34,10 +34,10 @@ use serde::{Deserialize, Serialize};
 use crate::bodies::{Clockwork, state_at};
 use crate::components::{BodyState, Mass, Particle, ParticleId, StoredBody};
 use crate::hooks::{FragmentMessage, ImpactMessage, ImpactOutcome, MergeMessage, Messages};
-use crate::inverse::ensemble::{derive_seed, splitmix64};
 use crate::resources::LazyState;
 use crate::scene::{BoxGeometry, Material, Physics, TimeControl};
 use crate::schedule::{SimBuilder, Simulation};
+use crate::seeds::{derive_seed, splitmix64};
 use agglo_engine::field::Field;
 
 use super::grid::{GridError, MassGrid};
