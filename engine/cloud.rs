@@ -280,8 +280,8 @@ impl From<&BodyState> for PlacedBody {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
-/// How the initial cloud's velocities are drawn (`cloud.velocity_distribution`); the
-/// scale is `cloud.velocity_scale` [m/s].
+/// How the initial cloud's velocities are drawn (`cloud.velocity_distribution`): scaled
+/// by `cloud.v_rel` [m/s], or at `cloud.granular_temperature` [m²/s²] for `maxwell`.
 pub enum VelocityDistribution {
     /// λ ~ U[−1, 1] per component (P04).
     #[default]

@@ -115,7 +115,7 @@ pub fn main() -> anyhow::Result<()> {
 
 fn dispatch(command: Command, cluster: Option<&agglo::farm::Cluster>) -> anyhow::Result<()> {
     match command {
-        Command::Run(args) => run(*args),
+        Command::Run(args) => run_command(*args),
         Command::Validate {
             scenario,
             set,
@@ -221,7 +221,7 @@ fn is_inverse_file(path: &Path) -> bool {
         .is_some_and(|v| v.get("genes").is_some())
 }
 
-fn run(args: RunArgs) -> anyhow::Result<()> {
+fn run_command(args: RunArgs) -> anyhow::Result<()> {
     let plan = run_plan(&args)?;
     let resumed = plan.resume.as_ref().map(|r| {
         (

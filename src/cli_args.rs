@@ -17,10 +17,12 @@ use crate::live::DEFAULT_ADDR;
 #[command(name = "agglo", version, about, long_about = None)]
 pub struct Cli {
     #[command(subcommand)]
+    /// The subcommand.
     pub command: Command,
 }
 
 #[derive(Subcommand, Debug)]
+/// The subcommands of `agglo`.
 pub enum Command {
     /// Run a scenario to its end time.
     Run(Box<RunArgs>),
@@ -122,6 +124,7 @@ pub fn man_page() -> std::io::Result<Vec<u8>> {
 }
 
 #[derive(Subcommand, Debug)]
+/// The studies of `agglo study`.
 pub enum StudyCommand {
     /// Run one scene under a ladder of numerical settings; write accuracy.csv and charts.
     Accuracy {
@@ -161,6 +164,7 @@ pub enum StudyCommand {
 }
 
 #[derive(clap::Args, Debug)]
+/// The arguments of `agglo run`.
 pub struct RunArgs {
     /// Scenario file (JSON).
     #[arg(required_unless_present_any = ["from", "resume"], conflicts_with_all = ["from", "resume"])]
@@ -211,10 +215,12 @@ pub struct RunArgs {
     #[arg(long, short)]
     pub quiet: bool,
     #[command(flatten)]
+    /// Serving the run live (`--live`).
     pub live: LiveArgs,
 }
 
 #[derive(clap::Args, Debug)]
+/// The arguments of `agglo optimize`.
 pub struct OptimizeArgs {
     /// Inverse-problem file (JSON).
     pub problem: PathBuf,
@@ -238,10 +244,12 @@ pub struct OptimizeArgs {
     #[arg(long, value_name = "FILE")]
     pub sample_times: Option<PathBuf>,
     #[command(flatten)]
+    /// Serving the GA live (`--live`).
     pub live: LiveInverseArgs,
 }
 
 #[derive(clap::Args, Debug)]
+/// The arguments of `agglo scan`.
 pub struct ScanArgs {
     /// Inverse-problem file (JSON): its base scenario, end-time rule, cost and ensemble rule are used.
     pub problem: PathBuf,
@@ -249,8 +257,10 @@ pub struct ScanArgs {
     #[arg(long)]
     pub gene: String,
     #[arg(long)]
+    /// The scan's first value.
     pub from: f64,
     #[arg(long)]
+    /// The scan's last value.
     pub to: f64,
     /// Number of points (≥ 2).
     #[arg(long, default_value_t = 9)]
@@ -265,6 +275,7 @@ pub struct ScanArgs {
     #[arg(long, value_parser = threads_arg, default_value_t = 0)]
     pub threads: usize,
     #[arg(long, short)]
+    /// Print no progress lines.
     pub quiet: bool,
 }
 
@@ -332,6 +343,7 @@ naming the body). Rates follow K n_i n_j (i != j) and 1/2 K n_i^2 (i = j); K = c
 Example:
   agglo kernel scenarios/ballistic_aggregation.json --bins dustpy:1e-5,1,7 \\
       --seeds 8 --window 0:0.05 --units cgs --out kernel.npz --parquet kernel.parquet")]
+/// The arguments of `agglo kernel`.
 pub struct KernelArgs {
     /// Scenario file (JSON).
     pub scenario: PathBuf,

@@ -48,6 +48,7 @@ pub trait Observer: Send {
 
 /// What an observer is given at the end of a run.
 pub struct Ending<'a> {
+    /// The simulation as the run left it.
     pub sim: &'a Simulation,
     /// The last advance's result (the recording and the live view say it).
     pub outcome: &'a Result<(), SimError>,
@@ -72,6 +73,7 @@ pub struct Written {
 /// Checkpoints written during a run.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct CheckpointsWritten {
+    /// Checkpoints written.
     pub count: u64,
     /// Size of the last [bytes].
     pub bytes: u64,

@@ -55,20 +55,28 @@ pub struct Scenario {
     /// The periodic control volume.
     #[serde(rename = "box")]
     pub domain: Domain,
+    /// The bodies at t = 0: a random cloud or explicit bodies.
     pub cloud: Cloud,
+    /// The grains' material: density, hardness, heat, cooling.
     pub material: Material,
     #[serde(default)]
+    /// The impact/heat solve (docs/model.md §5).
     pub impact: ImpactModel,
+    /// The end time and how the steps are chosen.
     pub time: TimeControl,
     #[serde(default)]
+    /// Which physics runs: merging, fragmentation, the cooling integrator, the contact
+    /// rule, impacts per step.
     pub physics: Physics,
     /// Forces every body feels between events: uniform g, linear gas drag
     /// (docs/model.md §4.7). None when absent.
     #[serde(default, skip_serializing_if = "Field::is_none")]
     pub field: Field,
     #[serde(default)]
+    /// The invariant checks during the run.
     pub diagnostics: Diagnostics,
     #[serde(default)]
+    /// What the run writes and where.
     pub output: Output,
     /// The sections of the extensions this binary carries, one per plugin, named after
     /// it: `"plugins": {"charged_grains": {"q0": 1e-8}}` (src/plugins/). Left out of

@@ -9,7 +9,7 @@ use bevy_ecs::prelude::*;
 use agglo_engine::components::{Particle, Position};
 use agglo_engine::resources::BoxGeometry;
 
-/// The system.
+/// Stage 8 as a system: bring every position back into the periodic box [−D, D]³ [m].
 pub fn wrap_positions(
     geometry: Res<BoxGeometry>,
     mut bodies: Query<&mut Position, With<Particle>>,

@@ -261,7 +261,8 @@ impl ContactScratch {
     }
 }
 
-/// The system.
+/// Stage 1 as a system: find this step's contacts (touching, approaching pairs within
+/// the contact rule) and list them in resolution order.
 pub fn detect_contacts(
     bodies: BodyQuery,
     scene: SceneConstants,

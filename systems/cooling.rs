@@ -27,7 +27,8 @@ pub use agglo_engine::laws::cooling::{
     radiative_closed_form_with_far_field, radiative_time_to,
 };
 
-/// The system.
+/// Stage 6 as a system: cool every body over Δt [s] by convection and radiation with the
+/// scene's integrator (stepped core).
 pub fn cool_bodies(
     material: Res<Material>,
     options: Res<Physics>,

@@ -130,7 +130,8 @@ pub struct Checks<'w, 's> {
     non_finite: ResMut<'w, NonFiniteState>,
 }
 
-/// The system.
+/// Stage 9 as a system: check mass, momentum and the energy ledgers every so many steps
+/// and record the worst relative errors.
 pub fn check_invariants(mut checks: Checks, bodies: TotalsQuery) {
     let clock = *checks.clock;
     // clock.step is the index of the step being finished; check after every `every`-th.

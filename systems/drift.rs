@@ -16,7 +16,8 @@ use agglo_engine::components::{Mass, Particle, Position, Radius, Velocity};
 use agglo_engine::field::{Field, FieldKind};
 use agglo_engine::resources::{EnergyLedger, SimClock};
 
-/// The system.
+/// Stage 7 as a system: move every body over Δt [s] — a straight line, or its closed-form
+/// flight in the field — and book the field's work [J] and impulse [kg m/s].
 pub fn drift(
     clock: Res<SimClock>,
     field: Option<Res<Field>>,

@@ -151,7 +151,9 @@ pub struct FragmentBody {
 
 type FragmentQuery<'w, 's> = Query<'w, 's, FragmentBody, With<Particle>>;
 
-/// The system.
+/// Stage 4 as a system: break every body of this step's impacts whose lost energy δK
+/// exceeds its fracture threshold into pieces (docs/model.md §7), booking the fracture
+/// energy [J].
 #[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
 pub fn fragment_bodies(
     records: Res<ImpactRecords>,

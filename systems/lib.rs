@@ -10,7 +10,7 @@
 //! that leaves a system out says why ([`SimBuilder::leave_out`]), so `agglo validate`,
 //! the summary and the recording can show it. The stage order lives in the engine
 //! ([`StepSystems`](agglo_engine::schedule::StepSystems)); [`default_plugins`] lists the
-//! built-ins and [`DefaultPlugins`] adds them to a simulation. Each plugin sits in the
+//! built-ins and [`NewBuiltinSimulation`] builds a simulation with them. Each plugin sits in the
 //! file of the systems it schedules; they call the core-only builder calls
 //! ([`agglo_engine::core_only::SimBuilderCore`]) besides the ones every plugin has.
 
@@ -54,21 +54,38 @@ pub fn default_plugins() -> Vec<Box<dyn SimPlugin>> {
     ]
 }
 
-/// The built-in physics for a simulation: `Simulation::new(&scenario)` and
-/// `builder.add_default_plugins()` (bring the trait into scope, e.g. with
-/// `agglo::prelude::*`).
-pub trait DefaultPlugins {
-    /// The scenario with the built-in physics ([`default_plugins`]).
+/// `Simulation::new(&scene)` with the built-in physics alone, for a program that uses
+/// the engine without the `agglo` package (whose prelude's `Simulation::new` adds the
+/// registered extensions too). Bring the trait into scope to call it.
+pub trait NewBuiltinSimulation {
+    /// The scene with the built-in physics ([`default_plugins`]).
     fn new(scene: &dyn Scene) -> Result<Self, SimError>
     where
         Self: Sized;
 }
 
-impl DefaultPlugins for Simulation {
+impl NewBuiltinSimulation for Simulation {
     fn new(scene: &dyn Scene) -> Result<Self, SimError> {
         let mut builder = Simulation::builder(scene)?;
         builder.add_plugins(default_plugins());
         builder.build()
+    }
+}
+
+/// The old name of [`NewBuiltinSimulation`]: a trait named like a plugin group (issue
+/// 40). Kept so that programs importing it still build, with a warning.
+#[deprecated(note = "renamed NewBuiltinSimulation (agglo_systems::NewBuiltinSimulation)")]
+pub trait DefaultPlugins {
+    /// The scene with the built-in physics ([`default_plugins`]).
+    fn new(scene: &dyn Scene) -> Result<Self, SimError>
+    where
+        Self: Sized;
+}
+
+#[allow(deprecated)]
+impl<T: NewBuiltinSimulation> DefaultPlugins for T {
+    fn new(scene: &dyn Scene) -> Result<Self, SimError> {
+        <T as NewBuiltinSimulation>::new(scene)
     }
 }
 

@@ -62,7 +62,8 @@ pub struct MergeBody {
 
 type MergeQuery<'w, 's> = Query<'w, 's, MergeBody, With<Particle>>;
 
-/// The system.
+/// Stage 3 as a system: merge every pair the impact solve bonded into one body, keeping
+/// mass [kg], momentum [kg m/s] and heat [J].
 #[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
 pub fn merge_bonded(
     records: Res<ImpactRecords>,

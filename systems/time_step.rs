@@ -24,7 +24,8 @@ use agglo_engine::params::SceneConstants;
 use agglo_engine::resources::{Counters, ForceKicks, SimClock, StateChanged};
 use agglo_engine::scene::Stepping;
 
-/// The system.
+/// Stage 5 as a system: choose the next Δt [s] from the time to the next contact and
+/// the stepping rule (docs/model.md §4).
 pub fn choose_time_step(
     bodies: BodyQuery,
     scene: SceneConstants,

@@ -2,47 +2,24 @@
 //! (`AggloCellInput::granular_anisotropy`, NULL: isotropic) is lifted and comes back as
 //! the figure `class_granular_temperature_axes` (T_xx, T_yy, T_zz per class).
 
-use std::ffi::CStr;
 use std::ptr::{null, null_mut};
 
 use agglo_c::AggloStatus;
 use agglo_c::cell::*;
 use agglo_c::coupling::*;
-use agglo_c::error::agglo_last_error;
 use agglo_c::output::{agglo_output_free, agglo_output_get};
 use agglo_c::state::agglo_state_free;
 
-fn message() -> String {
-    // SAFETY: the library's message is a valid C string until the next call.
-    unsafe { CStr::from_ptr(agglo_last_error()) }
-        .to_string_lossy()
-        .into_owned()
-}
+mod common;
+use common::{message, two_class_coupling};
 
 /// Two classes (1 and 2+ primaries) of ballistic_aggregation.json's grains, boxes of
 /// 300 bodies, 48 replicas (the defaults otherwise); and the primary mass [kg].
 fn coupling() -> (*mut AggloCoupling, f64) {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../scenarios/ballistic_aggregation.json\0"
-    );
-    let path = CStr::from_bytes_with_nul(path.as_bytes()).unwrap();
-    let (mut b0, mut m0) = (0.0, 0.0);
     let mut options = agglo_coupling_options_default();
     options.bodies = 300;
     options.replicas = 48;
-    let mut c = null_mut();
-    // SAFETY: valid pointers throughout.
-    unsafe {
-        assert_eq!(
-            agglo_scenario_primary_load(path.as_ptr(), &mut b0, &mut m0),
-            AggloStatus::Ok
-        );
-        let edges = [0.5 * m0, 1.5 * m0, 1e9 * m0];
-        let status = agglo_coupling_load(path.as_ptr(), edges.as_ptr(), 3, &options, &mut c);
-        assert_eq!(status, AggloStatus::Ok, "{}", message());
-    }
-    (c, m0)
+    two_class_coupling(&options)
 }
 
 #[test]

@@ -3,52 +3,29 @@
 //! refused by index (it was freed twice, aborting the host); a closed cell's state given
 //! to an open coupling is refused (its bodies were dropped without a word).
 
-use std::ffi::CStr;
 use std::ptr::{null, null_mut};
 
 use agglo_c::AggloStatus;
 use agglo_c::cell::*;
 use agglo_c::coupling::*;
-use agglo_c::error::agglo_last_error;
 use agglo_c::output::agglo_output_free;
 use agglo_c::state::{AggloCellState, agglo_state_free};
 
-const CLASSES: usize = 2;
+mod common;
+use common::{message, two_class_coupling};
 
-fn message() -> String {
-    // SAFETY: the library's message is a valid C string until the next call.
-    unsafe { CStr::from_ptr(agglo_last_error()) }
-        .to_string_lossy()
-        .into_owned()
-}
+const CLASSES: usize = 2;
 
 /// A coupling of ballistic_aggregation.json's grains on two classes (1 and 2+
 /// primaries), 40 bodies per box, one replica; and its primary mass [kg].
 fn coupling(keep_bodies: bool) -> (*mut AggloCoupling, f64) {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../scenarios/ballistic_aggregation.json\0"
-    );
-    let path = CStr::from_bytes_with_nul(path.as_bytes()).unwrap();
-    let (mut b0, mut m0) = (0.0, 0.0);
     let mut options = agglo_coupling_options_default();
     options.bodies = 40;
     options.replicas = 1;
     options.keep_bodies = keep_bodies;
     // Re-lifted or closed cells, as these tests were written (persist is the default).
     options.persist = false;
-    let mut c = null_mut();
-    // SAFETY: valid pointers throughout.
-    unsafe {
-        assert_eq!(
-            agglo_scenario_primary_load(path.as_ptr(), &mut b0, &mut m0),
-            AggloStatus::Ok
-        );
-        let edges = [0.5 * m0, 1.5 * m0, 1e9 * m0];
-        let status = agglo_coupling_load(path.as_ptr(), edges.as_ptr(), 3, &options, &mut c);
-        assert_eq!(status, AggloStatus::Ok, "{}", message());
-    }
-    (c, m0)
+    two_class_coupling(&options)
 }
 
 /// One cell's arrays: monomers at volume fraction 0.02 (b0 from m0 at ρ = 1000 kg/m³).

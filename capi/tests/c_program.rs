@@ -1,25 +1,33 @@
-//! The C interface as a C program sees it: `examples/advance_cells.c` compiles against
-//! the committed header (kept current by `cargo run -p agglo-capi-header`, checked in CI) with
-//! warnings as errors, links to the shared library and passes its own checks; and the
-//! calls refuse NULLs and bad lengths by name, from Rust.
+//! The C interface as a C program sees it: `examples/advance_cells.c` and the short
+//! `examples/one_cell.c` compile against the committed header (kept current by `cargo
+//! run -p agglo-capi-header`, checked in CI) with warnings as errors, link to the shared
+//! library and pass their own checks; and the calls refuse NULLs and bad lengths by
+//! name, from Rust.
 
 use agglo_c::AggloStatus;
 
 mod common;
 use common::{c_command, compile_c, crate_dir};
 
-#[test]
-fn the_c_example_compiles_runs_and_its_checks_hold() {
+/// Compile the example `source` (under capi/) with warnings as errors, run it on
+/// ballistic_aggregation.json and return what it printed, failing if it failed.
+fn run_example(source: &str) -> String {
     let build = tempfile::tempdir().unwrap();
-    let exe = compile_c("examples/advance_cells.c", build.path());
+    let exe = compile_c(source, build.path());
     let scenario = crate_dir().join("../scenarios/ballistic_aggregation.json");
     let run = c_command(&exe).arg(&scenario).output().unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout);
+    let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
     assert!(
         run.status.success(),
-        "the C program failed:\n{stdout}\n{}",
+        "{source} failed:\n{stdout}\n{}",
         String::from_utf8_lossy(&run.stderr)
     );
+    stdout
+}
+
+#[test]
+fn the_c_example_compiles_runs_and_its_checks_hold() {
+    let stdout = run_example("examples/advance_cells.c");
     // Its own checks held; the lines below show they ran.
     for line in [
         "all checks hold",
@@ -40,16 +48,7 @@ fn the_short_c_example_compiles_and_runs() {
     let lines = std::fs::read_to_string(&source).unwrap().lines().count();
     // The bound (REBOUND's drag example is 70 lines): short enough to read at once.
     assert!(lines <= 80, "examples/one_cell.c has {lines} lines");
-    let build = tempfile::tempdir().unwrap();
-    let exe = compile_c("examples/one_cell.c", build.path());
-    let scenario = crate_dir().join("../scenarios/ballistic_aggregation.json");
-    let run = c_command(&exe).arg(&scenario).output().unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "the C program failed:\n{stdout}\n{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let stdout = run_example("examples/one_cell.c");
     assert_eq!(stdout.matches("dn/dt = ").count(), 3, "{stdout}");
     assert!(stdout.ends_with("done\n"), "{stdout}");
 }

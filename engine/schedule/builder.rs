@@ -44,7 +44,7 @@ pub(crate) type Finisher = Box<dyn FnOnce(&mut World)>;
 impl Simulation {
     /// Start building with custom plugins. The built-in physics is one call away
     /// (`SimBuilder::add_default_plugins`, from `agglo_systems::AddDefaultPlugins`);
-    /// `agglo_systems::DefaultPlugins::new` builds a scene with it alone, and
+    /// `agglo_systems::NewBuiltinSimulation::new` builds a scene with it alone, and
     /// `agglo::prelude`'s `Simulation::new` with it and the registered extensions.
     pub fn builder(scene: &dyn Scene) -> Result<SimBuilder, SimError> {
         SimBuilder::new(scene)

@@ -61,9 +61,10 @@ def ensemble(
 ) -> Ensemble:
     """Run ``scenario`` once per seed on ``threads`` Rust threads (0: one per core).
 
-    ``tables`` names the tables to keep for every run (series, sizes, snapshots,
-    collisions), sampled on the scenario's ``output.sampling``; they are returned stacked,
-    with a ``seed`` column. The scenario's own output files are not written.
+    ``tables`` names the tables to keep for every run — any table ``Simulation.run``
+    takes: series, sizes, snapshots (sampled on the scenario's ``output.sampling``),
+    collisions, and the per-step tables such as impact_speeds; they are returned
+    stacked, with a ``seed`` column. The scenario's own output files are not written.
     """
     seeds = [whole("seeds", s, 0, MAX_SEED) for s in seeds]
     tables = list(tables)

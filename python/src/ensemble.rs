@@ -35,10 +35,12 @@ pub fn ensemble<'py>(
         }
         agglo::farm::check_threads(threads)
             .map_err(|e| scenario_error(format!("ensemble: threads: {e}")))?;
+        let names = RunPlan::table_names();
         for name in &tables {
-            if !["series", "sizes", "snapshots", "collisions"].contains(&name.as_str()) {
+            if !names.contains(&name.as_str()) {
                 return Err(scenario_error(format!(
-                    "ensemble: tables: no table `{name}` (allowed: series, sizes, snapshots, collisions)"
+                    "ensemble: tables: no table `{name}` (allowed: {})",
+                    names.join(", ")
                 )));
             }
         }
@@ -69,14 +71,12 @@ pub fn ensemble<'py>(
                 let mut s = base.clone();
                 s.seed = seed;
                 let mut plan = RunPlan::new(s).map_err(|e| format!("{e:#}"))?;
+                // One run of many: its memory was checked above with the others held at
+                // once, and a clamping warning per run would repeat the same line.
+                plan.one_of_many = true;
                 for name in &tables {
-                    let path = Some(table_path(index, name));
-                    match name.as_str() {
-                        "series" => plan.tables.series = path,
-                        "sizes" => plan.tables.sizes = path,
-                        "snapshots" => plan.tables.snapshots = path,
-                        _ => plan.tables.collisions = path,
-                    }
+                    plan.set_table(name, table_path(index, name))
+                        .map_err(|e| format!("{e:#}"))?;
                 }
                 let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
                 let mut run = Run::start(plan, stop).map_err(|e| format!("{e:#}"))?;

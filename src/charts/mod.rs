@@ -31,6 +31,7 @@ pub fn init_fonts() {
 
 /// A figure that can be drawn on any plotters backend (so one description gives PNG and SVG).
 pub trait Figure {
+    /// Draw the figure on `area`.
     fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
     where
         DB::ErrorType: 'static;

@@ -48,12 +48,16 @@ pub trait Dispatcher {
 /// Why a farm could not finish a batch.
 #[derive(Debug, thiserror::Error)]
 pub enum FarmError {
+    /// The worker threads could not be started.
     #[error("thread pool: {0}")]
     Pool(String),
+    /// No worker made progress: the farm gave up rather than wait forever.
     #[error("the dispatcher has nothing to start and nothing running, yet is not finished")]
     Stalled,
+    /// MPI failed (a rank, a message).
     #[error("MPI: {0}")]
     Mpi(String),
+    /// A task panicked (a bug); the message is the panic's.
     #[error("a task panicked (a bug in agglo, please report it): {0}")]
     Panicked(String),
 }
@@ -62,11 +66,14 @@ pub enum FarmError {
 /// rank of `cluster` when there is one.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Workers<'a> {
+    /// Worker threads (0: one per core; under MPI, one per rank).
     pub threads: usize,
+    /// The MPI cluster the tasks spread over (None: this process alone).
     pub cluster: Option<&'a Cluster>,
 }
 
 impl<'a> Workers<'a> {
+    /// `threads` workers in this process (0: one per core), no MPI.
     pub fn local(threads: usize) -> Self {
         Self {
             threads,
@@ -282,11 +289,14 @@ pub struct ListDispatcher<'a, T, O> {
 /// A task of a [`ListDispatcher`]: its index and the task itself.
 #[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct Indexed<T> {
+    /// The task's position in its list.
     pub index: usize,
+    /// The task.
     pub task: T,
 }
 
 impl<'a, T, O> ListDispatcher<'a, T, O> {
+    /// A dispatcher handing out `tasks` in order.
     pub fn new(tasks: Vec<T>) -> Self {
         let results = tasks.iter().map(|_| None).collect();
         Self {
@@ -297,6 +307,7 @@ impl<'a, T, O> ListDispatcher<'a, T, O> {
         }
     }
 
+    /// Call `f` with (index, result) as each task's result arrives.
     pub fn on_result(mut self, f: impl FnMut(usize, &O) + 'a) -> Self {
         self.on_result = Some(Box::new(f));
         self

@@ -33,7 +33,12 @@ pub enum SampleScene {
     /// The problem's genes set to these values.
     Genes(Vec<f64>),
     /// One scenario field set to a value (a scan).
-    Field { path: String, value: f64 },
+    Field {
+        /// The field's dotted path.
+        path: String,
+        /// Its value.
+        value: f64,
+    },
 }
 
 /// One sample to compute: everything a worker on any rank needs besides the problem.
@@ -41,16 +46,22 @@ pub enum SampleScene {
 pub struct SampleTask {
     /// The job's position in its batch.
     pub job: usize,
+    /// The sample's index in its ensemble.
     pub sample: u32,
+    /// The sample's scene seed.
     pub seed: u64,
+    /// The scene: gene values or one field set.
     pub scene: SampleScene,
+    /// Keep the final radii (for the histogram).
     pub keep_radii: bool,
 }
 
 /// A sample's outcome and the seconds its worker spent on it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SampleReport {
+    /// The sample's result, or why it failed.
     pub outcome: SampleOutcome,
+    /// Wall-clock seconds its worker spent [s].
     pub seconds: f64,
 }
 
@@ -71,8 +82,11 @@ pub fn run_task(problem: &InverseProblem, task: &SampleTask) -> SampleReport {
 /// The cost of one computed sample (`--sample-times`): where the time of a batch goes.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct SampleTime {
+    /// The job's position in its batch.
     pub job: usize,
+    /// The sample's index in its ensemble.
     pub sample: u32,
+    /// Wall-clock seconds its worker spent [s].
     pub seconds: f64,
     /// False for a speculative sample its ensemble did not need.
     pub used: bool,
@@ -83,10 +97,13 @@ pub type DoneHook<'a> = &'a dyn Fn(usize, &Evaluation);
 
 /// One ensemble of a batch.
 pub struct Job {
+    /// The scene: gene values or one field set.
     pub scene: SampleScene,
     /// The scene seed of each sample.
     pub seed_of: Box<dyn Fn(u32) -> u64 + Send + Sync>,
+    /// Keep the final radii (for the histogram).
     pub keep_radii: bool,
+    /// The ensemble being filled, with its stopping rule.
     pub accumulator: Accumulator,
     /// "name = value, …" for error messages.
     pub label: String,
@@ -125,6 +142,7 @@ pub struct EnsembleBatch<'a> {
 }
 
 impl<'a> EnsembleBatch<'a> {
+    /// A batch of `jobs`, no hooks yet.
     pub fn new(jobs: Vec<Job>) -> Self {
         let remaining = jobs.len();
         Self {

@@ -14,23 +14,30 @@ use serde_json::Value;
 use super::ga::GaState;
 use super::problem::{InverseError, InverseProblem};
 
+/// The checkpoint's file name in the run's output directory.
 pub const FILE: &str = "checkpoint.json";
 const FORMAT: &str = "agglo-inverse-checkpoint-1";
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
+/// The GA's checkpoint (`checkpoint.json`): the problem it belongs to and the state
+/// to continue from.
 pub struct Checkpoint {
+    /// The layout's name and version, `agglo-inverse-checkpoint-1`.
     pub format: String,
     /// `crc32:` and the CRC-32 (hex) of this checkpoint's JSON without this field.
     /// Absent only in checkpoints written before checksums; those still load.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checksum: Option<String>,
-    /// The inverse file as parsed and the resolved base scenario: a resume must match both.
+    /// The inverse file as parsed (a resume must match it).
     pub spec: Value,
+    /// The resolved base scenario (a resume must match it).
     pub base: Value,
+    /// Where the GA stands.
     pub state: GaState,
 }
 
 impl Checkpoint {
+    /// The checkpoint of `problem` at `state` (its checksum filled in).
     pub fn new(problem: &InverseProblem, state: &GaState) -> Self {
         Self {
             format: FORMAT.into(),
@@ -52,6 +59,7 @@ impl Checkpoint {
         Ok(format!("crc32:{:08x}", crc32fast::hash(text.as_bytes())))
     }
 
+    /// Write it to `dir`/checkpoint.json, replacing the last one atomically.
     pub fn save(&self, dir: &Path) -> Result<(), InverseError> {
         let sealed = Checkpoint {
             checksum: Some(self.content_checksum()?),

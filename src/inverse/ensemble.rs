@@ -27,20 +27,10 @@ use super::problem::{
     CostSpec, EnsembleRule, EnsembleSpec, FailurePolicy, Moment, SampleFailure, Tracked,
 };
 
-/// splitmix64 finaliser: a bijective 64-bit mixer.
-pub fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// Hash a sequence of words into one seed (each word mixed into the running state).
-pub fn derive_seed(words: &[u64]) -> u64 {
-    words
-        .iter()
-        .fold(0x6A09_E667_F3BC_C908, |h, &w| splitmix64(h ^ splitmix64(w)))
-}
+// Their home is crate::seeds (the live view and the kernel use them too, and importing
+// them from here tied the door to a run into a circle); kept here for the subgrid's
+// imports.
+pub use crate::seeds::{derive_seed, splitmix64};
 
 /// Scene seed of `sample` of `string` in `generation` of the run with `seed`.
 pub fn sample_seed(seed: u64, generation: usize, string: usize, sample: u32) -> u64 {
@@ -54,13 +44,16 @@ pub struct Observables {
     pub mean: f64,
     /// σ / b0.
     pub std_dev: f64,
+    /// Skewness of the final radii (dimensionless).
     pub skewness: f64,
+    /// Kurtosis of the final radii (dimensionless).
     pub kurtosis: f64,
     /// b* / b0.
     pub b_star: f64,
 }
 
 impl Observables {
+    /// The observables of one run's growth.
     pub fn of(g: &Growth) -> Self {
         Self {
             mean: g.growth_ratio,
@@ -191,9 +184,14 @@ pub fn cost_standard_error(spec: &CostSpec, samples: &[Observables]) -> Option<f
 /// The stopping rule on a stream of tracked values (one vector per sample).
 #[derive(Debug, Clone)]
 pub struct StoppingRule {
+    /// Which quantity the rule tracks.
     pub kind: EnsembleRule,
+    /// The rule's tolerance, relative to the tracked values ([`EnsembleRule`] says of
+    /// what: their change or their standard error).
     pub tol: f64,
+    /// Samples run before the rule may stop.
     pub min_samples: u32,
+    /// Samples after which it stops regardless.
     pub max_samples: u32,
     previous: Option<Vec<f64>>,
     count: u32,
@@ -205,6 +203,7 @@ impl StoppingRule {
         Self::of_kind(EnsembleRule::RunningMean, tol, min_samples, max_samples)
     }
 
+    /// The rule `kind` with these bounds.
     pub fn of_kind(kind: EnsembleRule, tol: f64, min_samples: u32, max_samples: u32) -> Self {
         Self {
             kind,
@@ -280,10 +279,11 @@ pub struct Evaluation {
     /// Ensemble means of the observables.
     #[serde(default)]
     pub means: Observables,
-    /// Generation and population index the string was evaluated at (seed coordinates).
+    /// Generation the string was evaluated at (seed coordinates).
     #[serde(default)]
     pub generation: usize,
     #[serde(default)]
+    /// Its index in the generation (seed coordinates).
     pub index: usize,
     /// Final radii / b0 of every body of every sample, in sample order (for the histogram).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -293,6 +293,7 @@ pub struct Evaluation {
 /// What one simulation sample contributes to its ensemble.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SampleResult {
+    /// The sample's observables.
     pub observables: Observables,
     /// Final radii / b0 (only when the ensemble keeps them).
     pub radii: Vec<f64>,
@@ -338,7 +339,12 @@ pub enum Progress {
     /// The ensemble is complete.
     Done(Evaluation),
     /// Sample `sample` failed and the failure policy is to stop the run.
-    Failed { sample: u32, failure: SampleFailure },
+    Failed {
+        /// The sample's index.
+        sample: u32,
+        /// Why it failed.
+        failure: SampleFailure,
+    },
 }
 
 /// One ensemble being filled, sample by sample, in sample order.
@@ -356,6 +362,7 @@ pub struct Accumulator {
 }
 
 impl Accumulator {
+    /// An empty ensemble of `ensemble`'s rule, costed by `cost`, failing by `on_failure`.
     pub fn new(
         ensemble: &EnsembleSpec,
         cost: &CostSpec,

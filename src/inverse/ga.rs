@@ -21,15 +21,20 @@ use super::problem::{GaSpec, InverseError, StopOn};
 /// One string: gene values and their ensemble evaluation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Member {
+    /// Gene values, in the problem's gene order.
     pub genes: Vec<f64>,
+    /// Its ensemble's cost and means.
     pub eval: Evaluation,
 }
 
 /// One row of `generations.csv`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GenerationRow {
+    /// The generation (0-based).
     pub generation: usize,
+    /// The best string's cost.
     pub best_cost: f64,
+    /// The mean cost of the K parents.
     pub mean_top_k: f64,
     /// Strings evaluated in this generation.
     pub evaluations: usize,
@@ -47,12 +52,15 @@ pub struct GenerationRow {
 pub struct GaState {
     /// Generations completed.
     pub generations_done: usize,
-    /// Current search bounds.
+    /// Current lower search bound of each gene.
     pub lower: Vec<f64>,
+    /// Current upper search bound of each gene.
     pub upper: Vec<f64>,
     /// The K best strings of the last generation, ranked.
     pub parents: Vec<Member>,
+    /// One row per generation done.
     pub history: Vec<GenerationRow>,
+    /// Strings evaluated so far.
     pub total_evaluations: usize,
     /// True once G generations ran or the cost reached `tol`.
     pub finished: bool,
@@ -67,12 +75,14 @@ pub struct GaState {
 pub struct Finalist {
     /// Its rank among the parents of the last generation (1 = the GA's best).
     pub ga_rank: usize,
+    /// Its gene values.
     pub genes: Vec<f64>,
     /// The large ensemble of fresh seeds.
     pub eval: Evaluation,
 }
 
 impl GaState {
+    /// A GA before its first generation, searching within [lower, upper] per gene.
     pub fn new(lower: Vec<f64>, upper: Vec<f64>) -> Self {
         Self {
             generations_done: 0,

@@ -53,16 +53,31 @@ pub use problem::{InverseError, InverseProblem, InverseSpec};
 #[derive(Debug, Clone)]
 pub enum Event<'a> {
     /// A generation starts: `strings` evaluations to do.
-    GenerationStarted { generation: usize, strings: usize },
+    GenerationStarted {
+        /// The generation (0-based).
+        generation: usize,
+        /// Evaluations to do.
+        strings: usize,
+    },
     /// One string finished with `samples` samples.
-    StringDone { generation: usize, samples: u32 },
+    StringDone {
+        /// The generation (0-based).
+        generation: usize,
+        /// Samples its ensemble took.
+        samples: u32,
+    },
     /// A generation finished.
     GenerationDone(&'a GenerationRow),
     /// The GA's state after that generation (right after [`Event::GenerationDone`]; for
     /// live views, which show the best string's genes).
     GenerationState(&'a GaState),
     /// The closing check starts: `strings` strings of `samples` samples each.
-    CheckStarted { strings: usize, samples: u32 },
+    CheckStarted {
+        /// Strings re-evaluated.
+        strings: usize,
+        /// Samples each.
+        samples: u32,
+    },
 }
 
 /// Receives (generation, the cost of every sample the generation computed).
@@ -81,6 +96,7 @@ pub struct Options<'a> {
     pub stop_after: Option<usize>,
     /// Set to stop between samples (Ctrl-C).
     pub cancel: Option<&'a AtomicBool>,
+    /// Told each [`Event`] of the run (progress lines, the live view).
     pub progress: Option<&'a (dyn Fn(Event) + Sync)>,
     /// Receives the cost of every sample computed, generation by generation
     /// (the closing check as generation G).
@@ -254,7 +270,9 @@ fn reevaluate(
 /// One point of a one-gene scan.
 #[derive(Debug, Clone, Serialize)]
 pub struct ScanPoint {
+    /// The gene's value.
     pub value: f64,
+    /// Its ensemble's cost and means.
     pub eval: Evaluation,
 }
 

@@ -56,34 +56,49 @@ pub fn generations_csv(history: &[GenerationRow]) -> String {
 }
 
 #[derive(Debug, Serialize)]
+/// One gene of a string in `best.json`: its name, the scenario field it sets, its value.
 pub struct GeneValue {
+    /// The gene's name.
     pub name: String,
+    /// The scenario field it sets (dotted path).
     pub path: String,
+    /// Its value, in the field's unit.
     pub value: f64,
 }
 
 /// One ranked string of `best.json`.
 #[derive(Debug, Serialize)]
 pub struct Ranked {
+    /// Rank by the GA's ensemble (1 = the best).
     pub rank: usize,
+    /// Its genes.
     pub genes: Vec<GeneValue>,
+    /// Its cost (the problem's `cost`).
     pub cost: f64,
     /// Standard error of the cost (delta method over the ensemble's samples).
     pub cost_se: Option<f64>,
-    /// Ensemble mean b_f / b0 and its standard error.
+    /// Ensemble mean b_f / b0.
     pub growth_ratio: f64,
+    /// Standard error of `growth_ratio` (None with one sample).
     pub growth_se: Option<f64>,
     /// n_f = (b̄_f / b0)³.
     pub n_f: f64,
-    /// Ensemble mean σ/b0, skewness m_3, kurtosis m_4 of the final radii.
+    /// Ensemble mean σ/b0 of the final radii.
     pub std_dev_ratio: f64,
+    /// Ensemble mean skewness m_3 of the final radii.
     pub skewness: f64,
+    /// Ensemble mean kurtosis m_4 of the final radii.
     pub kurtosis: f64,
+    /// Samples in its ensemble.
     pub samples: u32,
+    /// Failed samples (with an `on_failure` penalty).
     pub failures: u32,
-    /// Where it was evaluated; sample i ran with seed `seeds[i]` (`agglo run --seed`).
+    /// The generation it was evaluated in; sample i ran with seed `seeds[i]` (`agglo
+    /// run --seed`).
     pub generation: usize,
+    /// Its index in that generation.
     pub index: usize,
+    /// The samples' seeds, in sample order.
     pub seeds: Vec<u64>,
 }
 
@@ -94,35 +109,55 @@ pub struct Checked {
     pub rank: usize,
     /// Rank by the GA's own ensemble.
     pub ga_rank: usize,
+    /// Its genes.
     pub genes: Vec<GeneValue>,
+    /// Its cost over the check's ensemble.
     pub cost: f64,
+    /// Standard error of that cost (delta method).
     pub cost_se: Option<f64>,
+    /// Ensemble mean b_f / b0.
     pub growth_ratio: f64,
+    /// Its standard error.
     pub growth_se: Option<f64>,
+    /// n_f = (b̄_f / b0)³.
     pub n_f: f64,
+    /// Samples in the check's ensemble.
     pub samples: u32,
+    /// Failed samples.
     pub failures: u32,
-    /// The GA's own figures for the same string.
+    /// The GA's own cost for the same string.
     pub ga_cost: f64,
+    /// The GA's standard error of that cost.
     pub ga_cost_se: Option<f64>,
+    /// Samples in the GA's ensemble.
     pub ga_samples: u32,
     /// Sample i of the check ran with seed `seeds[i]`.
     pub seeds: Vec<u64>,
 }
 
 #[derive(Debug, Serialize)]
+/// The closing check in `best.json`.
 pub struct CheckFile {
+    /// Strings re-evaluated.
     pub strings: usize,
+    /// Samples of fresh seeds per string.
     pub samples_per_string: u32,
+    /// The strings, ranked by the check's cost.
     pub ranked: Vec<Checked>,
 }
 
 #[derive(Debug, Serialize)]
+/// What `best.json` holds.
 pub struct BestFile<'a> {
+    /// The problem's name.
     pub problem: &'a str,
+    /// The cost the strings are ranked by.
     pub cost: &'a CostSpec,
+    /// Generations done.
     pub generations: usize,
+    /// Strings evaluated in all.
     pub total_evaluations: usize,
+    /// True once the GA stopped by its own rule.
     pub finished: bool,
     /// Ranked by the GA's own ensembles (comparable with the papers' tables).
     pub top: Vec<Ranked>,
@@ -183,6 +218,7 @@ fn check_file(problem: &InverseProblem, state: &GaState) -> Option<CheckFile> {
     })
 }
 
+/// `best.json` of `problem` at `state`: its parents ranked, and the closing check when it ran.
 pub fn best_file<'a>(problem: &'a InverseProblem, state: &GaState) -> BestFile<'a> {
     let seed = problem.spec.ga.seed;
     let top = state
@@ -484,9 +520,13 @@ impl Figure for Convergence<'_> {
 
 /// A histogram of `values` with `bins` equal bins.
 pub struct Histogram<'a> {
+    /// The chart's title.
     pub title: String,
+    /// The x axis's label.
     pub x_label: String,
+    /// The values binned.
     pub values: &'a [f64],
+    /// Equal bins over the values' range.
     pub bins: usize,
 }
 
@@ -533,11 +573,17 @@ impl Figure for Histogram<'_> {
 
 /// A line chart of y against x, optionally with a horizontal reference line.
 pub struct LineChart<'a> {
+    /// The chart's title.
     pub title: String,
+    /// The x axis's label.
     pub x_label: String,
+    /// The y axis's label.
     pub y_label: String,
+    /// The (x, y) points, joined in order.
     pub points: &'a [(f64, f64)],
+    /// A logarithmic x axis.
     pub log_x: bool,
+    /// A horizontal line at this y, with its label.
     pub reference: Option<(f64, String)>,
 }
 

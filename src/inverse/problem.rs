@@ -34,8 +34,10 @@ pub struct SampleFailure(pub String);
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InverseSpec {
+    /// The problem's name (in outputs and the live view).
     pub name: String,
     #[serde(default)]
+    /// Free text: what the problem is for.
     pub description: String,
     /// Base scenario: a path relative to this file's directory, or an inline scenario object.
     pub base: BaseScenario,
@@ -44,8 +46,11 @@ pub struct InverseSpec {
     /// How the end time T follows from the genes.
     #[serde(default)]
     pub end_time: EndTimeRule,
+    /// The cost minimised.
     pub cost: CostSpec,
+    /// How many samples each string's ensemble takes.
     pub ensemble: EnsembleSpec,
+    /// The genetic algorithm's settings.
     pub ga: GaSpec,
     /// What a failed simulation sample does.
     #[serde(default)]
@@ -87,6 +92,7 @@ impl Default for Reevaluate {
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
+/// Where the base scenario comes from: a file or the scenario inline.
 pub enum BaseScenario {
     /// Path to a scenario file, relative to the inverse file's directory.
     Path(String),
@@ -104,7 +110,9 @@ pub struct GeneSpec {
     pub name: String,
     /// Dotted scenario path, e.g. `material.H0` or `cloud.v_rel.0`.
     pub path: String,
+    /// The gene's lower bound, in the field's unit.
     pub min: f64,
+    /// The gene's upper bound, in the field's unit.
     pub max: f64,
     /// Other fields that follow this gene: field = scale × gene (P04: v_rel = (v0, 0.1 v0, 0.1 v0)).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -113,9 +121,12 @@ pub struct GeneSpec {
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
+/// A field that follows a gene: field = `scale` × gene.
 pub struct Tie {
+    /// The field's dotted scenario path.
     pub path: String,
     #[serde(default = "one")]
+    /// The factor (default 1).
     pub scale: f64,
 }
 
@@ -132,7 +143,10 @@ pub enum EndTimeRule {
     Scenario,
     /// P02 (13): T = (S_gap / v_crit) · ln(0.01)/ln(0.9), S_gap = (V/N)^(1/3) − 2 b0,
     /// v_crit = √(6 af H0 β / ρ) (docs/model.md §13), with `steps` fixed steps of T / steps.
-    P02 { steps: u64 },
+    P02 {
+        /// Fixed steps over T.
+        steps: u64,
+    },
 }
 
 /// The cost of one parameter set, computed from ensemble-mean observables.
@@ -142,9 +156,17 @@ pub enum CostSpec {
     /// Π04 = 1 − b̄_f / b* (P04 (7.1)); lower = more agglomeration.
     Pi04,
     /// Π02 = |b̄_f / (r_t b0) − 1| (P02 (26)).
-    Pi02 { target_ratio: f64 },
+    Pi02 {
+        /// The target growth r_t = b̄_f / b0.
+        target_ratio: f64,
+    },
     /// |m̄ − target| / |target| (|m̄| if target = 0) for one radius moment.
-    Moment { moment: Moment, target: f64 },
+    Moment {
+        /// Which moment.
+        moment: Moment,
+        /// Its target value.
+        target: f64,
+    },
 }
 
 /// Radius-distribution moments (docs/model.md §11); lengths in units of b0.
@@ -167,14 +189,19 @@ pub enum Moment {
 pub enum Tracked {
     /// The cost of the running means.
     Cost,
+    /// b_f / b0.
     Mean,
+    /// σ / b0.
     StdDev,
+    /// m_3.
     Skewness,
+    /// m_4.
     Kurtosis,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
+/// How many simulation samples a string's ensemble takes (the problem's `ensemble`).
 pub struct EnsembleSpec {
     /// `running_mean` (the papers): stop when |Q̄_{E+1} − Q̄_E| ≤ tol |Q̄_{E+1}|;
     /// `standard_error`: stop when the standard error of Q̄ ≤ tol |Q̄| — for every tracked Q.
@@ -183,9 +210,12 @@ pub struct EnsembleSpec {
     #[serde(default)]
     pub rule: EnsembleRule,
     #[serde(default = "two")]
+    /// Samples run before the rule may stop (default 2).
     pub min_samples: u32,
+    /// Samples after which the ensemble stops regardless.
     pub max_samples: u32,
     #[serde(default = "default_track")]
+    /// The quantities the rule watches (default: the cost).
     pub track: Vec<Tracked>,
 }
 
@@ -241,9 +271,12 @@ fn half() -> f64 {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
+/// Which cost the GA's `tol` watches.
 pub enum StopOn {
     #[default]
+    /// The best string's cost (default).
     Best,
+    /// The mean cost of the K parents.
     MeanTopK,
 }
 
@@ -261,35 +294,56 @@ pub enum FailurePolicy {
 /// Everything that can go wrong in the inverse problem.
 #[derive(Debug, thiserror::Error)]
 pub enum InverseError {
+    /// A file could not be read.
     #[error("cannot read `{path}`: {source}")]
     Io {
+        /// The file.
         path: String,
+        /// Why reading failed.
         #[source]
         source: std::io::Error,
     },
+    /// A field of the inverse file does not parse.
     #[error("inverse file field `{path}`: {message}")]
-    Parse { path: String, message: String },
+    Parse {
+        /// The field's path.
+        path: String,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// Parsed, but values out of their ranges: every problem, with its path.
     #[error("invalid inverse problem:\n  {}", .0.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("\n  "))]
     Invalid(Vec<ValidationIssue>),
+    /// The base scenario could not be loaded.
     #[error("base scenario: {0}")]
     Base(#[source] ScenarioError),
+    /// A sample failed and the failure policy is `error`.
     #[error(
         "generation {generation}, string {string}, sample {sample} (seed {seed}) failed with genes {genes}: {source}\n  \
          (set \"on_failure\": {{\"penalty\": <cost>}} in the inverse file to score such strings instead)"
     )]
     Sample {
+        /// The generation (0-based).
         generation: usize,
+        /// The string's index in it.
         string: usize,
+        /// The sample's index in its ensemble.
         sample: u32,
+        /// The sample's seed (`agglo run --seed` repeats it).
         seed: u64,
+        /// The string's genes, `name = value, …`.
         genes: String,
+        /// Why the sample failed.
         #[source]
         source: SampleFailure,
     },
+    /// The checkpoint could not be read, written or matched to the problem.
     #[error("{0}")]
     Checkpoint(String),
+    /// Stopped by the user (Ctrl-C); the last generation is checkpointed.
     #[error("interrupted; the last completed generation is checkpointed: continue with --resume")]
     Interrupted,
+    /// Anything else (the message says what).
     #[error("{0}")]
     Other(String),
 }
@@ -297,6 +351,7 @@ pub enum InverseError {
 /// A loaded, validated inverse problem with its base scenario resolved.
 #[derive(Debug, Clone)]
 pub struct InverseProblem {
+    /// The file as written.
     pub spec: InverseSpec,
     /// The base scenario (defaults filled in).
     pub base: Scenario,

@@ -34,10 +34,10 @@ use serde::{Deserialize, Serialize};
 use crate::bodies::{Clockwork, state_at};
 use crate::components::{BodyState, Mass, Particle, ParticleId, StoredBody};
 use crate::hooks::{FragmentMessage, ImpactMessage, ImpactOutcome, MergeMessage, Messages};
-use crate::inverse::ensemble::{derive_seed, splitmix64};
 use crate::resources::LazyState;
 use crate::scene::{BoxGeometry, Material, Physics, TimeControl};
 use crate::schedule::{SimBuilder, Simulation};
+use crate::seeds::{derive_seed, splitmix64};
 use agglo_engine::field::Field;
 
 use super::grid::{GridError, MassGrid};
@@ -69,37 +69,62 @@ pub fn subscribe(builder: &mut SimBuilder) {
 /// Why an accumulator could not observe or pool.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum KernelError {
+    /// The mass grid is unusable.
     #[error(transparent)]
     Grid(#[from] GridError),
     #[error(
         "the simulation does not collect {0}: build it with agglo::kernel::subscribe(&mut builder)"
     )]
+    /// The simulation does not collect the messages named (impacts, merges, fragments).
     NotSubscribed(&'static str),
     #[error(
         "Accumulator::observe before Accumulator::begin: call begin(&sim) before the first step"
     )]
+    /// Observed before `begin`.
     NotBegun,
+    /// Begun again before `end_run`.
     #[error("Accumulator::begin while a run is open: call end_run first")]
     RunOpen,
+    /// Pooled with an accumulator on another grid (the two grids' specs).
     #[error("cannot pool accumulators on different grids (`{0}` and `{1}`)")]
     GridMismatch(String, String),
+    /// Pooled with an accumulator whose run is still open.
     #[error("cannot pool an accumulator whose run is still open: call end_run first")]
     OtherOpen,
+    /// A merge whose bond the accumulator did not see.
     #[error(
         "at t = {time:e} s body {id} merged, but no impact of its step names it: the accumulator reads merges through their bonds"
     )]
-    UnknownParent { id: u64, time: f64 },
+    UnknownParent {
+        /// The merged body's stable id.
+        id: u64,
+        /// When [s].
+        time: f64,
+    },
+    /// A body left a class without a merge or fragmentation message.
     #[error(
         "at t = {time:e} s body {id} left a class the accumulator counted empty: bodies were added or removed without a merge or fragmentation message"
     )]
-    Untracked { id: u64, time: f64 },
+    Untracked {
+        /// The body's stable id.
+        id: u64,
+        /// When [s].
+        time: f64,
+    },
+    /// A window outside 0 ≤ T0 < T1.
     #[error("--window: allowed 0 ≤ T0 < T1, finite T0 (got {start:e}:{end:e})")]
-    Window { start: f64, end: f64 },
+    Window {
+        /// T0 asked for [s].
+        start: f64,
+        /// T1 asked for [s].
+        end: f64,
+    },
 }
 
 /// The time window impacts and exposure are counted in: start ≤ t < end [s].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Window {
+    /// Start T0 [s], ≥ 0 and finite.
     pub start: f64,
     /// `f64::INFINITY` for "to the end of the run".
     pub end: f64,
@@ -115,6 +140,7 @@ impl Default for Window {
 }
 
 impl Window {
+    /// The window [start, end) [s]; refused unless 0 ≤ start < end, start finite.
     pub fn new(start: f64, end: f64) -> Result<Self, KernelError> {
         if start.is_finite() && start >= 0.0 && end > start {
             Ok(Self { start, end })
@@ -137,6 +163,7 @@ impl Window {
 /// row-major, filled only for i ≤ j (the kernel is symmetric).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Tally {
+    /// Mass classes on the grid.
     pub classes: usize,
     /// Impacts per outcome ([`OUTCOMES`]), `3 × classes²`.
     pub counts: Vec<u64>,
@@ -159,6 +186,7 @@ pub struct Tally {
 }
 
 impl Tally {
+    /// Zero sums on `classes` classes.
     pub fn new(classes: usize) -> Self {
         let pairs = classes * classes;
         Self {
@@ -209,8 +237,11 @@ impl Tally {
 /// (index 3), and Σ_r E_r².
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunMoments {
+    /// Σ_r C_r² per pair, per outcome and for all (4 × classes²).
     pub cc: Vec<f64>,
+    /// Σ_r C_r E_r per pair, per outcome and for all (4 × classes²) [s/m³].
     pub ce: Vec<f64>,
+    /// Σ_r E_r² per pair (classes²) [s²/m⁶].
     pub ee: Vec<f64>,
 }
 
@@ -308,14 +339,19 @@ impl Default for Sampling {
 /// Pool with [`Accumulator::merge`]; estimate with [`super::Estimate::of`].
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Accumulator {
+    /// The mass classes counted on.
     pub grid: MassGrid,
+    /// The time window counted in [s].
     pub window: Window,
+    /// How relative speeds over all pairs are sampled.
     pub sampling: Sampling,
     /// Everything pooled so far.
     pub pooled: Tally,
+    /// Per-run second moments, for the across-run standard errors.
     pub moments: RunMoments,
-    /// Runs pooled, and their seeds in the order they were pooled.
+    /// Runs pooled.
     pub runs: u64,
+    /// The runs' seeds, in pooling order.
     pub seeds: Vec<u64>,
     #[serde(skip)]
     live: Option<Box<Live>>,
@@ -358,6 +394,7 @@ struct SpeedSample {
 }
 
 impl Accumulator {
+    /// An empty accumulator on `grid`, counting in `window`.
     pub fn new(grid: MassGrid, window: Window, sampling: Sampling) -> Self {
         let classes = grid.classes();
         Self {
@@ -372,6 +409,7 @@ impl Accumulator {
         }
     }
 
+    /// Mass classes on the grid.
     pub fn classes(&self) -> usize {
         self.grid.classes()
     }

@@ -25,6 +25,7 @@ pub const CONVENTION: &str = "rate of (i,j) impacts per unit volume = K_ij n_i n
 /// What an array measures, for its unit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Dim {
+    /// Dimensionless (counts, probabilities, text).
     None,
     /// m³/s (cgs: cm³/s).
     Kernel,
@@ -59,10 +60,13 @@ impl Dim {
 /// One array of the kernel file, documented.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ArraySpec {
+    /// The array's name in the file.
     pub name: &'static str,
     /// Shape, in words (Nm classes, 3 outcomes, R runs).
     pub shape: &'static str,
+    /// What it measures, for its unit.
     pub dim: Dim,
+    /// What it holds, in a line.
     pub doc: &'static str,
 }
 
@@ -272,25 +276,35 @@ pub const KERNEL_ARRAYS: &[ArraySpec] = &[
 /// The values of an array.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Data {
+    /// Floating-point values.
     F64(Vec<f64>),
+    /// Signed integers.
     I64(Vec<i64>),
+    /// Counts.
     U64(Vec<u64>),
+    /// Text.
     Text(Vec<String>),
 }
 
 /// A named array in the file's units.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Array {
+    /// Its name in the file.
     pub name: &'static str,
+    /// Its shape, row-major.
     pub shape: Vec<usize>,
+    /// Its unit in the file's units (SI or cgs).
     pub unit: &'static str,
+    /// Its values, flat.
     pub data: Data,
 }
 
 /// The estimates from an accumulator, in SI, dense and symmetric.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Estimate {
+    /// Mass classes.
     pub classes: usize,
+    /// Runs pooled.
     pub runs: u64,
     /// The accumulator's values, dense: name → values (SI), shapes as in [`KERNEL_ARRAYS`].
     values: Vec<(&'static str, Data)>,
@@ -315,6 +329,7 @@ pub fn wilson(x: u64, n: u64) -> (f64, f64) {
 }
 
 impl Estimate {
+    /// The estimates of the pooled sums of `acc`.
     pub fn of(acc: &Accumulator) -> Self {
         let nm = acc.classes();
         let pairs = nm * nm;

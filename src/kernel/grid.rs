@@ -25,78 +25,122 @@ use serde::{Deserialize, Serialize};
 /// Why a grid was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GridError {
+    /// The spec names no known kind (the text given).
     #[error(
         "--bins: expected `edges:m0,m1,...`, `dustpy:mmin,mmax,bins_per_decade` or `openfoam:d0,d1,...` (got `{0}`)"
     )]
     Kind(String),
+    /// A value does not parse as a number.
     #[error("--bins {kind}: value {index} `{text}` is not a number")]
     NotANumber {
+        /// The spec's kind (`edges`, `dustpy`, `openfoam`).
         kind: &'static str,
+        /// The value's position in the list (0-based).
         index: usize,
+        /// The text that does not parse.
         text: String,
     },
+    /// A value is not a finite number > 0.
     #[error("--bins {kind}: value {index} is {value:e}: allowed a finite number > 0")]
     NotPositive {
+        /// The spec's kind (`edges`, `dustpy`, `openfoam`).
         kind: &'static str,
+        /// The value's position in the list (0-based).
         index: usize,
+        /// The value, in the spec's unit.
         value: f64,
     },
+    /// The values do not increase strictly.
     #[error(
         "--bins {kind}: value {index} ({value:e}) is not above value {prev_index} ({prev:e}): the values must increase strictly (sorted, no repeats)"
     )]
     Unsorted {
+        /// The spec's kind (`edges`, `dustpy`, `openfoam`).
         kind: &'static str,
+        /// The value's position in the list (0-based).
         index: usize,
+        /// The value, in the spec's unit.
         value: f64,
+        /// The previous value's position.
         prev_index: usize,
+        /// The previous value.
         prev: f64,
     },
+    /// Too few values to make one class.
     #[error("--bins {kind}: zero bins: needs at least {needed} values (got {got})")]
     TooFew {
+        /// The spec's kind (`edges`, `dustpy`, `openfoam`).
         kind: &'static str,
+        /// Values needed.
         needed: usize,
+        /// Values given.
         got: usize,
     },
+    /// More classes than [`MAX_CLASSES`].
     #[error(
         "--bins: {classes} classes: allowed at most {MAX_CLASSES} (the file holds Nm³ fragment mass fractions)"
     )]
-    TooMany { classes: usize },
+    TooMany {
+        /// Classes asked for.
+        classes: usize,
+    },
+    /// A value converted to kg is not finite, positive and increasing.
     #[error(
         "--bins {kind}: {what} {index} is {value:e} kg after conversion: the masses and their edges must be finite, > 0 and increasing (the values are too small or too close to give distinct masses in f64)"
     )]
     Converted {
+        /// The spec's kind (`edges`, `dustpy`, `openfoam`).
         kind: &'static str,
+        /// Which value (a centre or an edge).
         what: &'static str,
+        /// The value's position in the list (0-based).
         index: usize,
+        /// The value after conversion [kg].
         value: f64,
     },
+    /// A field of a `dustpy:` spec is out of its range.
     #[error("--bins dustpy: {field}: allowed {allowed} (got {got})")]
     DustPy {
+        /// The field (`mmin`, `mmax`, `bins_per_decade`).
         field: &'static str,
+        /// Its allowed range.
         allowed: &'static str,
+        /// The value given.
         got: String,
     },
+    /// Bodies lie outside the grid at the start.
     #[error(
         "--bins: the grid {range} misses {missed} of the {bodies} bodies at t = {time:e} s (lightest {lightest}, heaviest {heaviest}); widen the grid"
     )]
     Misses {
         /// The grid's extent and the masses, in the grid's own units ([`MassGrid::show`]).
         range: String,
+        /// Bodies outside the grid.
         missed: usize,
+        /// Bodies in all.
         bodies: usize,
+        /// When [s].
         time: f64,
+        /// The lightest body's mass, in the grid's units.
         lightest: String,
+        /// The heaviest body's mass, in the grid's units.
         heaviest: String,
     },
+    /// A body left the grid during the run.
     #[error(
         "--bins: at t = {time:e} s body {id} has mass {mass}, outside the grid {range}; widen the grid"
     )]
     Outside {
+        /// When [s].
         time: f64,
+        /// The body's stable id.
         id: u64,
+        /// Its mass, in the grid's units.
         mass: String,
+        /// The grid's extent, in its own units ([`MassGrid::show`]).
         range: String,
     },
+    /// `dustpy:primary,…` where the caller does not know the primary mass.
     #[error(
         "--bins dustpy:primary,…: `primary` is the scenario's primary mass, which this caller does not know (use MassGrid::for_scenario)"
     )]
@@ -110,14 +154,18 @@ pub const MAX_CLASSES: usize = 300;
 /// Where a grid came from (kept in the file's provenance).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum GridKind {
+    /// `edges:m0,m1,…`: the class edges in kg.
     Edges,
+    /// `dustpy:mmin,mmax,bins_per_decade`: DustPy's grid, masses in g.
     DustPy,
+    /// `openfoam:d0,d1,…`: OpenFOAM size groups' diameters in m.
     OpenFoam,
 }
 
 /// Mass classes: `edges.len() − 1` classes, class k = [edges[k], edges[k+1]) [kg].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MassGrid {
+    /// Where the grid came from.
     pub kind: GridKind,
     /// The spec as given (`--bins`).
     pub spec: String,

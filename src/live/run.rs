@@ -21,7 +21,6 @@ use foxglove::{Encode, RawChannel};
 use super::{LiveOptions, Server, publish};
 use crate::components::BodyState;
 use crate::error::SimError;
-use crate::inverse::splitmix64;
 use crate::observables::Summary;
 use crate::observer::{Ending, Observer, Written};
 use crate::record::messages::{self, Warnings};
@@ -30,6 +29,7 @@ use crate::record::{
 };
 use crate::scenario::Scenario;
 use crate::schedule::Simulation;
+use crate::seeds::splitmix64;
 
 /// Id of the text entity that says when `/particles` shows a subset.
 pub const SUBSET_NOTE_ID: &str = "live_subset";

@@ -59,6 +59,7 @@ pub struct CollisionLog {
 }
 
 impl CollisionLog {
+    /// Create the log at `path` (CSV or Parquet by its extension) and write its header.
     pub fn create(path: &Path) -> anyhow::Result<Self> {
         Ok(Self {
             table: TableWriter::create(path, "collisions", COLLISION_COLUMNS)?,
@@ -110,6 +111,7 @@ impl CollisionLog {
         self.table.rows()
     }
 
+    /// Write what is buffered and close the file.
     pub fn finish(self) -> anyhow::Result<()> {
         self.table.finish()
     }

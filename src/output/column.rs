@@ -19,10 +19,13 @@ pub enum Kind {
 /// `agglo schema --outputs`, listed in docs/outputs.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Column {
+    /// The column's name in the table.
     pub name: &'static str,
+    /// What its values are (float, integer, id, text).
     pub kind: Kind,
     /// SI unit, `-` for a pure number.
     pub unit: &'static str,
+    /// What it holds, in a line.
     pub doc: &'static str,
 }
 
@@ -69,9 +72,12 @@ pub const fn text(name: &'static str, doc: &'static str) -> Column {
 /// One value of a row, of its column's kind.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Cell<'a> {
+    /// A float.
     F(f64),
+    /// An integer.
     I(i64),
     /// A stable id.
     U(u64),
+    /// Text.
     S(&'a str),
 }

@@ -9,7 +9,12 @@ pub mod collisions;
 mod column;
 pub mod offload;
 mod parquet_sink;
-pub mod run;
+pub mod run_tables;
+/// The old name of [`run_tables`] ("run" named five things: issue 40).
+#[deprecated(note = "renamed agglo::output::run_tables")]
+pub mod run {
+    pub use super::run_tables::*;
+}
 pub mod sampling;
 pub mod schema;
 pub mod series;
@@ -21,7 +26,7 @@ pub mod table;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-pub use run::{RunTables, TablePaths, TablesReport};
+pub use run_tables::{RunTables, TablePaths, TablesReport};
 pub use sampling::SampleSchedule;
 pub use sizes::SizeBins;
 

@@ -32,7 +32,10 @@ pub enum Threading {
     /// On the calling (simulation) thread.
     Inline,
     /// On a thread of its own, at most this many jobs queued.
-    Thread { bound: usize },
+    Thread {
+        /// Jobs queued at most before the caller waits.
+        bound: usize,
+    },
 }
 
 impl Threading {

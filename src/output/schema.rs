@@ -12,8 +12,11 @@ use super::table::{Column, Kind};
 /// One key of the summary JSON (nested keys joined with `.`), with its unit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Key {
+    /// The key, nested keys joined with `.`.
     pub name: &'static str,
+    /// Its unit (`-` for a pure number).
     pub unit: &'static str,
+    /// What it holds, in a line.
     pub doc: &'static str,
 }
 

@@ -96,10 +96,15 @@ pub const SERIES_COLUMNS: &[Column] = &[
 /// turnovers. Zero on the stepped core.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Pending {
+    /// Cooling loss not yet booked [J].
     pub cooling: f64,
+    /// A field's work not yet booked [J].
     pub work: f64,
+    /// Σ |work| of the same terms, the scale of its rounding [J].
     pub work_turnover: f64,
+    /// A field's impulse not yet booked [kg m/s].
     pub impulse: glam::DVec3,
+    /// Σ |impulse| of the same terms, the scale of its rounding [kg m/s].
     pub impulse_turnover: f64,
 }
 

@@ -263,17 +263,22 @@ impl Format {
 /// A table read back: column names and, per column, its values.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Table {
+    /// The columns' names, in order.
     pub names: Vec<String>,
+    /// Each column's values, in `names`' order.
     pub columns: Vec<Values>,
 }
 
 /// The values of one column.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Values {
+    /// Floats.
     F(Vec<f64>),
+    /// Integers.
     I(Vec<i64>),
     /// Integers some of which are above i64::MAX (ids).
     U(Vec<u64>),
+    /// Text.
     S(Vec<String>),
 }
 
@@ -287,6 +292,7 @@ impl Table {
             Values::S(v) => v.len(),
         })
     }
+    /// True when the table has no row.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

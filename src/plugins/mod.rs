@@ -39,7 +39,7 @@ pub fn simulation(scenario: &Scenario) -> Result<Simulation, SimError> {
 
 /// `Simulation::new(&scenario)` from `agglo::prelude`: the scene with the built-in
 /// physics and every registered extension, as every driver builds it ([`simulation`]).
-/// (`agglo_systems::DefaultPlugins::new` builds the built-ins alone, for programs that
+/// (`agglo_systems::NewBuiltinSimulation::new` builds the built-ins alone, for programs that
 /// use the engine without this package.)
 pub trait NewSimulation {
     /// The scenario's simulation with the built-in physics and the registered extensions.

@@ -23,32 +23,46 @@ use crate::schedule::Pipeline;
 /// One channel of a recording.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ChannelInfo {
+    /// The channel's topic, e.g. `/bodies`.
     pub topic: String,
+    /// Its schema's name.
     pub schema: String,
+    /// Its messages' encoding (`protobuf`, `json`).
     pub message_encoding: String,
+    /// Messages on it.
     pub messages: u64,
 }
 
 /// What `agglo inspect` reports.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Inspection {
+    /// The file inspected.
     pub file: String,
+    /// Its size [B].
     pub bytes: u64,
     /// True when the summary section and footer are present (the writer finished).
     pub finalised: bool,
     /// Why the scan stopped early, for a damaged or truncated file.
     pub damage: Option<String>,
+    /// Chunks read.
     pub chunks: u64,
+    /// Every channel, in the file's order.
     pub channels: Vec<ChannelInfo>,
+    /// Messages in all.
     pub messages: u64,
     /// Log-time span of the messages [s] (simulated time × playback scale).
     pub log_seconds: f64,
-    /// Simulated time of the first and last `/stats` message [s].
+    /// Simulated time of the first `/stats` message [s].
     pub first_time: Option<f64>,
+    /// Simulated time of the last `/stats` message [s].
     pub last_time: Option<f64>,
+    /// The embedded scenario (JSON), if the file has it.
     pub scenario: Option<String>,
+    /// The run's seed, from the metadata.
     pub seed: Option<u64>,
+    /// The agglo version that wrote it.
     pub engine_version: Option<String>,
+    /// The command line that made it.
     pub command_line: Option<String>,
     /// The outcome metadata (status, message, steps, time), absent if the writer was killed.
     pub result: Option<BTreeMap<String, String>>,

@@ -89,6 +89,9 @@ pub struct Sampling {
 pub const DEFAULT_SNAPSHOTS: f64 = 300.0;
 
 impl Sampling {
+    /// The recording schedule of `s`: its `output.recording` section (every so many
+    /// steps, an interval, or T / [`DEFAULT_SNAPSHOTS`] when neither is set) and its
+    /// playback scale.
     pub fn from_scenario(s: &Scenario) -> Self {
         let r = &s.output.recording;
         let interval = match (r.every_steps, r.interval) {
@@ -137,6 +140,7 @@ pub struct ColourScale {
 }
 
 impl ColourScale {
+    /// The scale of `s`: from min(θ0, θ_s) over [`COLOUR_DECADES`] decades.
     pub fn from_scenario(s: &Scenario) -> Self {
         let theta_lo = s.material.theta0.min(s.material.theta_s);
         Self {

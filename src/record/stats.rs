@@ -37,9 +37,13 @@ pub struct Stats {
     pub max_temperature: f64,
     /// Impacts resolved so far.
     pub impacts: u64,
+    /// Impacts that bonded so far.
     pub bonds: u64,
+    /// Impacts that bounced so far.
     pub bounces: u64,
+    /// Bodies that fragmented so far.
     pub fragmentations: u64,
+    /// Fixed-point iterations of the pair solve so far.
     pub fixed_point_iterations: u64,
     /// Impacts that needed the bracketed fallback solver.
     pub fallbacks: u64,

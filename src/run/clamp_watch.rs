@@ -23,7 +23,9 @@ pub const MIN_INTERVAL: Duration = Duration::from_secs(5);
 /// A window worth a warning: `clamped` of the last `steps` steps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ClampedWindow {
+    /// Clamped steps in the window.
     pub clamped: u64,
+    /// Steps in the window.
     pub steps: u64,
 }
 

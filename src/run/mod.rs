@@ -64,6 +64,7 @@ use progress::Progress;
 /// `agglo run`, the arguments of `Simulation.run` in Python).
 #[derive(Debug, Clone)]
 pub struct RunPlan {
+    /// The scenario to run.
     pub scenario: Scenario,
     /// Continue a stopped run from this checkpoint (`agglo run --resume`).
     pub resume: Option<Resume>,
@@ -97,7 +98,9 @@ pub struct RunPlan {
 /// A checkpoint to continue from, and the file it was read from.
 #[derive(Debug, Clone)]
 pub struct Resume {
+    /// The restart file it was read from (named in errors).
     pub file: PathBuf,
+    /// The checkpoint.
     pub snapshot: RestartSnapshot,
 }
 
@@ -107,19 +110,14 @@ impl RunPlan {
     pub fn new(scenario: Scenario) -> anyhow::Result<Self> {
         let tables = TableArgs::default().paths(&scenario.output)?;
         let output = &scenario.output;
+        let path = |p: &Option<String>| p.clone().map(PathBuf::from);
         Ok(Self {
-            summary: output.summary.clone().map(PathBuf::from),
-            final_state: output.final_state.clone().map(PathBuf::from),
-            recording: output.mcap.clone().map(PathBuf::from),
-            restart: None,
-            command_line: String::new(),
-            live: None,
-            progress: false,
-            one_of_many: false,
-            resume: None,
+            summary: path(&output.summary),
+            final_state: path(&output.final_state),
+            recording: path(&output.mcap),
             tables,
-            step_tables: Vec::new(),
-            scenario,
+            one_of_many: false,
+            ..Self::unwritten(scenario)
         })
     }
 
@@ -290,7 +288,9 @@ pub struct Run {
 
 /// What a finished run leaves: the simulation, its summary and what was written.
 pub struct RunEnd {
+    /// The simulation as the run left it.
     pub sim: Simulation,
+    /// Its summary at the end.
     pub summary: Summary,
     /// The recording and what it holds, if one was written.
     pub recording: Option<(PathBuf, RecordingReport)>,

@@ -81,6 +81,7 @@ impl Progress {
         self.bar.suspend(f);
     }
 
+    /// Clear the progress line (the run is over).
     pub fn finish(&self) {
         self.bar.finish_and_clear();
     }

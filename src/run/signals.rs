@@ -137,6 +137,7 @@ pub fn step_done() {
 pub struct Advancing;
 
 impl Advancing {
+    /// Count a run as stepping until the guard is dropped.
     pub fn enter() -> Self {
         ADVANCING.fetch_add(1, Ordering::SeqCst);
         LAST_STEP_END_NS.store(now_ns(), Ordering::SeqCst);

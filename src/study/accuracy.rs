@@ -45,6 +45,7 @@ pub const MAX_FIXED_STEPS: f64 = 400_000.0;
 /// A family of numerical settings (one chart series).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Family {
+    /// The reference: the finest settings the study affords.
     Reference,
     /// Adaptive step, step factor c.
     Adaptive,
@@ -59,6 +60,7 @@ pub enum Family {
 }
 
 impl Family {
+    /// Every family, in chart order.
     pub const ALL: [Family; 6] = [
         Family::Reference,
         Family::Adaptive,
@@ -68,6 +70,7 @@ impl Family {
         Family::Papers,
     ];
 
+    /// The family's name in `accuracy.csv`.
     pub fn name(self) -> &'static str {
         match self {
             Family::Reference => "reference",
@@ -83,11 +86,13 @@ impl Family {
 /// One rung of the ladder.
 #[derive(Debug, Clone)]
 pub struct Variant {
+    /// Its family.
     pub family: Family,
     /// Human-readable setting, e.g. "c = 10" (no commas: it goes into a CSV).
     pub label: String,
     /// The family's numeric parameter (c, Δt [s], TOL; 0 where none).
     pub parameter: f64,
+    /// The scene with this setting.
     pub scenario: Scenario,
 }
 
@@ -118,23 +123,37 @@ impl Default for AccuracyOptions {
 /// What one setting produced.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Measurement {
-    /// Median / min / max wall time of the repeats [s].
+    /// Median wall time of the repeats [s].
     pub wall_seconds: f64,
+    /// Shortest wall time of the repeats [s].
     pub wall_min: f64,
+    /// Longest wall time of the repeats [s].
     pub wall_max: f64,
+    /// Steps taken.
     pub steps: u64,
+    /// b_f / b0 at the end.
     pub growth_ratio: f64,
+    /// Bodies at the end.
     pub final_bodies: usize,
+    /// Impacts resolved.
     pub impacts: u64,
+    /// Mean temperature at the end [K].
     pub mean_temperature: f64,
     /// Final radii over b0.
     pub radii: Vec<f64>,
+    /// Worst relative mass error.
     pub max_mass_error: f64,
+    /// Worst relative momentum error.
     pub max_momentum_error: f64,
+    /// Worst relative energy-ledger error.
     pub max_energy_error: f64,
+    /// Impacts that needed the bracketed fallback.
     pub fallbacks: u64,
+    /// Impacts whose plain iteration did not converge.
     pub unconverged: u64,
+    /// Overlaps left after a step.
     pub overlap_violations: u64,
+    /// Steps clamped at Δt_min.
     pub clamped_steps: u64,
     /// Invariant checks that failed (e.g. θ ≤ 0 under explicit cooling).
     pub invariant_violations: u64,
@@ -145,14 +164,20 @@ pub struct Measurement {
 /// Errors of a measurement against the reference.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Errors {
+    /// Relative error of b_f / b0.
     pub growth: f64,
+    /// Relative error of the final body count.
     pub count: f64,
+    /// Kolmogorov–Smirnov distance of the final radii.
     pub ks: f64,
+    /// Relative error of the impact count.
     pub impacts: f64,
+    /// Relative error of the mean temperature.
     pub temperature: f64,
 }
 
 impl Errors {
+    /// The errors of `m` against `reference`.
     pub fn between(m: &Measurement, reference: &Measurement) -> Self {
         Self {
             growth: relative_error(m.growth_ratio, reference.growth_ratio),
@@ -167,10 +192,15 @@ impl Errors {
 /// One row of `accuracy.csv`.
 #[derive(Debug, Clone)]
 pub struct Row {
+    /// The setting's family.
     pub family: Family,
+    /// The setting, e.g. "c = 10".
     pub label: String,
+    /// The family's numeric parameter (c, Δt [s], TOL; 0 where none).
     pub parameter: f64,
+    /// What the setting produced.
     pub measurement: Measurement,
+    /// Its errors against the reference.
     pub errors: Errors,
     /// b_f/b0 over the study's seeds, for a setting whose single run says little: one
     /// that left impacts unconverged (the papers' plain iteration), whose outcome turns on
@@ -180,6 +210,7 @@ pub struct Row {
 }
 
 impl Row {
+    /// True when the run stopped early.
     pub fn failed(&self) -> bool {
         self.measurement.failure.is_some()
     }
@@ -225,27 +256,35 @@ impl Ensemble {
 /// The reference over several seeds.
 #[derive(Debug, Clone, Default)]
 pub struct NoiseBand {
+    /// The seeds, the scenario's own first.
     pub seeds: Vec<u64>,
+    /// The reference's measurement with each seed.
     pub measurements: Vec<Measurement>,
     /// Each other seed's errors against the reference seed.
     pub errors: Vec<Errors>,
     /// Mean of `errors` per observable: the noise level.
     pub level: Errors,
-    /// Mean and standard deviation of b_f/b0 over all seeds.
+    /// Mean of b_f/b0 over all seeds.
     pub growth_mean: f64,
+    /// Standard deviation of b_f / b0 over the seeds.
     pub growth_std: f64,
 }
 
 /// The study's results.
 #[derive(Debug, Clone)]
 pub struct AccuracyStudy {
+    /// The scene's name.
     pub scenario: String,
+    /// One row per setting, the reference first.
     pub rows: Vec<Row>,
+    /// The reference's spread over seeds.
     pub noise: NoiseBand,
+    /// A published b_f / b0 marked on the growth chart.
     pub target_growth: Option<f64>,
 }
 
 impl AccuracyStudy {
+    /// The reference row (the first).
     pub fn reference(&self) -> &Row {
         &self.rows[0]
     }
@@ -519,7 +558,9 @@ fn silent_failure(m: &Measurement) -> Option<String> {
 /// carry the scenario's optional fields) and its timed repeats.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct MeasureTask {
+    /// The scene, as JSON.
     pub scenario_json: String,
+    /// Timed repeats (≥ 1).
     pub repeats: usize,
 }
 

@@ -48,6 +48,7 @@ pub const PLAIN_BUDGET: u32 = 100_000;
 pub struct PairGrid {
     /// Approach speed of each sphere over the (cold) critical speed.
     pub speed_ratios: Vec<f64>,
+    /// Contact-area fractions at full rebound a0.
     pub a0s: Vec<f64>,
 }
 
@@ -66,16 +67,24 @@ impl Default for PairGrid {
 /// which softens it about threefold).
 #[derive(Debug, Clone, Copy)]
 pub struct PairSetup {
+    /// Radius [m].
     pub radius: f64,
+    /// Density ρ [kg/m³].
     pub rho: f64,
+    /// Hardness scale H0 [Pa].
     pub h0: f64,
+    /// Temperature θ0 [K].
     pub theta0: f64,
+    /// Heat capacity C [J/(kg K)].
     pub heat_capacity: f64,
+    /// Reaction heat per contact area α [J/m²].
     pub alpha: f64,
+    /// Activation energy Q [J/mol].
     pub activation_energy: f64,
 }
 
 impl PairSetup {
+    /// The cold pair: no reaction heat, no softening.
     pub fn cold() -> Self {
         Self {
             radius: 1e-3,
@@ -87,6 +96,7 @@ impl PairSetup {
             activation_energy: 0.0,
         }
     }
+    /// The softening pair: α = 3e5 J/m², Q = 2e4 J/mol.
     pub fn softening() -> Self {
         Self {
             alpha: 3e5,
@@ -136,11 +146,15 @@ impl PairSetup {
 /// One cell of the pair map.
 #[derive(Debug, Clone, Copy)]
 pub struct PairCell {
+    /// The cell's contact-area fraction at full rebound a0.
     pub a0: f64,
+    /// The approach speed over the cold critical speed.
     pub speed_ratio: f64,
     /// λ = 2 ρ v_p² / (3 H(θ0) β).
     pub lambda: f64,
+    /// The papers' plain iteration's result.
     pub plain: FixedPoint,
+    /// The safeguarded solve's result.
     pub safeguarded: FixedPoint,
     /// |e − G(e)| at the safeguarded solution.
     pub safeguarded_residual: f64,
@@ -149,9 +163,11 @@ pub struct PairCell {
 }
 
 impl PairCell {
+    /// True when the plain iteration converged.
     pub fn plain_converged(&self) -> bool {
         self.plain.method == SolveMethod::FixedPoint
     }
+    /// True when the safeguarded solve found a root (residual ≤ 1e-9).
     pub fn safeguarded_converged(&self) -> bool {
         self.safeguarded.method != SolveMethod::Unconverged && self.safeguarded_residual <= 1e-9
     }
@@ -245,13 +261,19 @@ fn write_pair_csv(path: &Path, cells: &[PairCell]) -> anyhow::Result<()> {
 /// One cell of the cooling map.
 #[derive(Debug, Clone, Copy)]
 pub struct CoolingCell {
+    /// The step Δt [s].
     pub dt: f64,
+    /// The initial temperature [K].
     pub theta_initial: f64,
     /// Explicit limit 1/(4 k θ0³) at the initial temperature [s].
     pub limit: f64,
+    /// Relative error of explicit (forward Euler) cooling at the end of `COOLING_STEPS` steps against the radiative closed form.
     pub explicit_error: f64,
+    /// Relative error of implicit cooling at the end of `COOLING_STEPS` steps against the radiative closed form.
     pub implicit_error: f64,
+    /// True when an explicit step left the band (non-finite, below the far-field temperature, or warming).
     pub explicit_unstable: bool,
+    /// The same for implicit steps.
     pub implicit_unstable: bool,
 }
 
@@ -364,6 +386,7 @@ fn write_cooling_csv(path: &Path, cells: &[CoolingCell]) -> anyhow::Result<()> {
 /// Kinematic miss fraction of one step Δt, pooled over clouds.
 #[derive(Debug, Clone, Copy)]
 pub struct KinematicMiss {
+    /// The step Δt [s].
     pub dt: f64,
     /// Pairs whose ballistic paths touch within Δt.
     pub colliding: u64,
@@ -372,6 +395,7 @@ pub struct KinematicMiss {
 }
 
 impl KinematicMiss {
+    /// The fraction of colliding pairs not detected (0 with none colliding).
     pub fn missed_fraction(&self) -> f64 {
         if self.colliding == 0 {
             0.0
@@ -601,6 +625,7 @@ pub fn run_misses(
 /// Knobs of the stability study.
 #[derive(Debug, Clone)]
 pub struct StabilityOptions {
+    /// The pair map's grid.
     pub pair_grid: PairGrid,
     /// Seeds for the step-size study.
     pub seeds: usize,
@@ -621,12 +646,17 @@ impl Default for StabilityOptions {
 /// All maps of the stability study.
 #[derive(Debug, Clone)]
 pub struct StabilityStudy {
+    /// The pair map of the cold pair.
     pub pair_cold: Vec<PairCell>,
+    /// The pair map of the softening pair.
     pub pair_soft: Vec<PairCell>,
+    /// The cooling map.
     pub cooling: Vec<CoolingCell>,
+    /// Kinematic misses per step Δt.
     pub kinematic: Vec<KinematicMiss>,
     /// Δt over the scene's crossing time b0 / |v_rel| (for the chart's second axis).
     pub crossing_time: f64,
+    /// Whole-run impact counts per step setting (empty without `runs`).
     pub runs: Vec<RunMiss>,
     /// Relative seed spread of the resolved impact count.
     pub runs_noise: f64,

@@ -23,8 +23,13 @@ fn agglo(args: &[&str]) -> Output {
         .unwrap()
 }
 
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
+/// Run `agglo args`, which must fail with exit status 1 (a refusal or a failed run,
+/// not a crash); what it said on stderr.
+fn fails(args: &[&str]) -> String {
+    let out = agglo(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+    err
 }
 
 #[test]
@@ -45,9 +50,7 @@ fn a_heat_capacity_beyond_any_material_is_refused_naming_material_c_and_its_rang
             final_state.to_str().unwrap(),
         ],
     ] {
-        let out = agglo(&args);
-        let err = stderr(&out);
-        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        let err = fails(&args);
         assert!(
             err.contains("material.C") && err.contains("0 < C ≤ 1e100 J/(kg·K)"),
             "{args:?}: {err}"
@@ -89,7 +92,7 @@ fn a_failed_run_says_its_final_state_is_the_state_at_the_failure() {
     // run fails mid-way, after validation.
     let dir = tempfile::tempdir().unwrap();
     let final_state = dir.path().join("final.csv");
-    let out = agglo(&[
+    let err = fails(&[
         "run",
         quick_demo().to_str().unwrap(),
         "-q",
@@ -102,8 +105,6 @@ fn a_failed_run_says_its_final_state_is_the_state_at_the_failure() {
         "--final-state",
         final_state.to_str().unwrap(),
     ]);
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "{err}");
     let rows = std::fs::read_to_string(&final_state).unwrap();
     let broken = rows
         .lines()
@@ -211,7 +212,7 @@ fn agglo_kernel_refuses_a_scene_larger_than_the_memory_before_any_run() {
     // run` refused the scene.
     let dir = tempfile::tempdir().unwrap();
     let out_file = dir.path().join("k.npz");
-    let out = agglo(&[
+    let err = fails(&[
         "kernel",
         quick_demo().to_str().unwrap(),
         "--set",
@@ -228,8 +229,6 @@ fn agglo_kernel_refuses_a_scene_larger_than_the_memory_before_any_run() {
         out_file.to_str().unwrap(),
         "-q",
     ]);
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
         err.contains("cloud.count: 4000000000 bodies need about 2600.0 GB (650 B per body)"),
         "{err}"
@@ -241,7 +240,7 @@ fn agglo_kernel_refuses_a_scene_larger_than_the_memory_before_any_run() {
 fn study_seed_counts_are_checked_against_the_memory_before_they_are_listed() {
     let dir = tempfile::tempdir().unwrap();
     // Readings: every reading × 4294967295 seeds, a scene each.
-    let out = agglo(&[
+    let err = fails(&[
         "study",
         "readings",
         quick_demo().to_str().unwrap(),
@@ -250,14 +249,12 @@ fn study_seed_counts_are_checked_against_the_memory_before_they_are_listed() {
         "--out",
         dir.path().to_str().unwrap(),
     ]);
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
         err.contains("runs (readings × --seeds) need about") && err.contains("allowed at most"),
         "{err}"
     );
     // Stability: refused before its maps are drawn (they take seconds), not after.
-    let out = agglo(&[
+    let err = fails(&[
         "study",
         "stability",
         "--seeds",
@@ -265,8 +262,6 @@ fn study_seed_counts_are_checked_against_the_memory_before_they_are_listed() {
         "--out",
         dir.path().to_str().unwrap(),
     ]);
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("4294967295 seeds need about"), "{err}");
     // Neither study wrote anything.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);

@@ -1,9 +1,22 @@
 //! For the C tests (c_program.rs, c_fuzz.rs): the crate's directory, libagglo_c.so built by
 //! the cargo that runs it (as c_program.rs builds it for the example), and a C
-//! program compiled against the header and the library with warnings as errors.
+//! program compiled against the header and the library with warnings as errors. For
+//! the tests that call the library from Rust (anisotropy.rs, batch_faults.rs): the last
+//! error's message and a two-class coupling of ballistic_aggregation.json.
+//!
+//! Each test crate uses a part of this module, hence `dead_code` allowed.
+#![allow(dead_code)]
 
+use std::ffi::CStr;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::ptr::null_mut;
+
+use agglo_c::AggloStatus;
+use agglo_c::coupling::{
+    AggloCoupling, AggloCouplingOptions, agglo_coupling_load, agglo_scenario_primary_load,
+};
+use agglo_c::error::agglo_last_error;
 
 pub fn crate_dir() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -90,4 +103,36 @@ pub fn c_command(exe: &Path) -> Command {
     let mut command = Command::new(exe);
     command.env("LD_LIBRARY_PATH", path);
     command
+}
+
+/// The message of the last failed call on this thread.
+pub fn message() -> String {
+    // SAFETY: the library's message is a valid C string until the next call.
+    unsafe { CStr::from_ptr(agglo_last_error()) }
+        .to_string_lossy()
+        .into_owned()
+}
+
+/// A coupling of ballistic_aggregation.json's grains on two classes (1 and 2+
+/// primaries: edges 0.5, 1.5 and 1e9 primary masses) with `options`; and the primary
+/// mass [kg].
+pub fn two_class_coupling(options: &AggloCouplingOptions) -> (*mut AggloCoupling, f64) {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/ballistic_aggregation.json\0"
+    );
+    let path = CStr::from_bytes_with_nul(path.as_bytes()).unwrap();
+    let (mut b0, mut m0) = (0.0, 0.0);
+    let mut c = null_mut();
+    // SAFETY: valid pointers throughout.
+    unsafe {
+        assert_eq!(
+            agglo_scenario_primary_load(path.as_ptr(), &mut b0, &mut m0),
+            AggloStatus::Ok
+        );
+        let edges = [0.5 * m0, 1.5 * m0, 1e9 * m0];
+        let status = agglo_coupling_load(path.as_ptr(), edges.as_ptr(), 3, options, &mut c);
+        assert_eq!(status, AggloStatus::Ok, "{}", message());
+    }
+    (c, m0)
 }

@@ -73,6 +73,7 @@ pub use report::{markdown, write_readings};
 /// (so that a rank needs neither the catalogue nor the base scenario).
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct ReadingTask {
+    /// The scene, patched and capped, as JSON.
     pub scenario_json: String,
 }
 
@@ -122,26 +123,39 @@ pub struct RunStats {
     /// (N0 / N_final)^(1/3): the radius of the mean-mass body over b0, the reading of
     /// b_f under which n_f = (b_f/b0)³ is P04's "average mass" ratio.
     pub mass_mean_ratio: f64,
+    /// Π04 = 1 − b̄_f / b* (P04 (7.1)).
     pub pi04: f64,
+    /// n_f = (b_f / b0)³.
     pub n_f: f64,
+    /// Bodies at the end.
     pub final_bodies: usize,
+    /// Impacts resolved.
     pub impacts: u64,
+    /// Impacts that bonded.
     pub bonds: u64,
+    /// Impacts that bounced.
     pub bounces: u64,
+    /// Impacts that needed the bracketed fallback.
     pub fallbacks: u64,
+    /// Impacts whose plain iteration did not converge.
     pub unconverged: u64,
     /// Reaction heat / impact dissipation: how much of the heat any reading of the
     /// impact's energy split (P04 (6.10) against P02 (14)–(17)) could move.
     pub reaction_over_dissipation: f64,
+    /// Highest temperature at the end [K].
     pub max_temperature: f64,
+    /// Invariant checks that failed.
     pub invariant_violations: usize,
+    /// Wall time of the run [s].
     pub wall_seconds: f64,
 }
 
 /// One run of one reading.
 #[derive(Debug, Clone)]
 pub struct Run {
+    /// The reading's index in the study's list.
     pub reading: usize,
+    /// The run's seed.
     pub seed: u64,
     /// The run's statistics, or why it failed (a scenario the reading makes invalid, or
     /// a run error such as explicit cooling going unstable).
@@ -151,23 +165,35 @@ pub struct Run {
 /// Ensemble statistics of one reading.
 #[derive(Debug, Clone, Default)]
 pub struct ReadingSummary {
+    /// Runs made.
     pub runs: usize,
+    /// Runs that failed.
     pub failures: usize,
     /// First failure message (empty when none).
     pub failure: String,
+    /// Mean b_f / b0 over the runs that succeeded.
     pub growth_mean: f64,
+    /// Its standard deviation over those runs.
     pub growth_std: f64,
     /// Standard error of the mean b_f/b0.
     pub growth_se: f64,
+    /// Mean (N0 / N_final)^(1/3).
     pub mass_mean_ratio: f64,
+    /// Mean Π04.
     pub pi04: f64,
     /// Π02 of the ensemble-mean radius, |⟨b_f⟩/(2 b0) − 1| (as the inverse problem).
     pub pi02: f64,
+    /// Mean n_f.
     pub n_f: f64,
+    /// Mean bodies at the end.
     pub final_bodies: f64,
+    /// Mean impacts.
     pub impacts: f64,
+    /// Mean bonds.
     pub bonds: f64,
+    /// Mean unconverged impacts.
     pub unconverged: f64,
+    /// Mean reaction heat / impact dissipation.
     pub reaction_over_dissipation: f64,
     /// Mean b_f/b0 minus the baseline's.
     pub delta: f64,
@@ -176,19 +202,28 @@ pub struct ReadingSummary {
     /// delta / √(se² + se_baseline²) (0 for the baseline; NaN if both errors are 0 and
     /// delta ≠ 0).
     pub z: f64,
+    /// Mean wall time per run [s].
     pub wall_seconds: f64,
 }
 
 /// The whole study.
 #[derive(Debug, Clone)]
 pub struct ReadingsStudy {
+    /// The base scene's name.
     pub scenario: String,
+    /// The seeds every reading runs with.
     pub seeds: Vec<u64>,
+    /// A published b_f / b0 the readings are compared with.
     pub target_growth: Option<f64>,
+    /// P02's end-time rule with this many fixed steps, if used.
     pub p02_steps: Option<u32>,
+    /// The step cap of each run, if set.
     pub max_steps: Option<u64>,
+    /// The readings, the baseline first.
     pub readings: Vec<Reading>,
+    /// Every run, reading by reading, seed by seed.
     pub runs: Vec<Run>,
+    /// One summary per reading, in `readings`' order.
     pub summaries: Vec<ReadingSummary>,
 }
 

@@ -28,10 +28,15 @@ use super::table::{Cell, Column, TableWriter, float};
 /// section.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct TablePaths {
+    /// The series table (`--series`, `output.series`): one row per sample.
     pub series: Option<PathBuf>,
+    /// The size-distribution table (`--sizes`, `output.sizes`): one row per bin per sample.
     pub sizes: Option<PathBuf>,
+    /// The snapshots table (`--snapshots`, `output.snapshots`): every body at each sample.
     pub snapshots: Option<PathBuf>,
+    /// The collision log (`--collisions`, `output.collisions`): one row per impact.
     pub collisions: Option<PathBuf>,
+    /// When the sampled tables are sampled (None: the `output.sampling` default).
     pub sampling: Option<SampleSchedule>,
 }
 
@@ -66,6 +71,7 @@ pub struct RunTables {
 /// What the tables hold when a run ends.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TablesReport {
+    /// Samples taken.
     pub samples: u64,
     /// Rows of the collision log (impacts).
     pub collisions: u64,
