@@ -17,7 +17,7 @@ pub enum Part {
     Lift,
     /// Adjusting a kept box to what transport changed (adjust.rs).
     Adjust,
-    /// Reading a kept box back: its snapshot decoded, its scene read from JSON.
+    /// Reading a kept box back: its snapshot decoded, its scene's settings made.
     Restore,
     /// Building the box's simulation (world, schedule, checks) and resuming a snapshot.
     Build,
@@ -25,7 +25,7 @@ pub enum Part {
     Run,
     /// Restriction: the class sums before and after, the replicas' means and SEs.
     Restrict,
-    /// Keeping a box for the next step: snapshot captured and encoded, scene to JSON.
+    /// Keeping a box for the next step: its snapshot captured and encoded.
     Keep,
 }
 
