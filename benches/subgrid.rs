@@ -174,7 +174,7 @@ fn stirred(held: &CellInput, fresh: &CellInput) -> CellInput {
 /// time, the CPU time in each part, what is left for the coupling (preparing, handing
 /// out and putting together the tasks, `apply_rates`), and the outputs and states.
 /// A macro step's outputs and states, its wall seconds, and each part's CPU seconds.
-type TimedStep = (Vec<(CellOutput, CellState)>, f64, [(Part, f64); 7]);
+type TimedStep = (Vec<(CellOutput, CellState)>, f64, [(Part, f64); 8]);
 
 fn timed_step(
     c: &Coupling,
@@ -198,7 +198,7 @@ fn timed_step(
     (results, wall, parts)
 }
 
-fn report(label: &str, cells: usize, c: &Coupling, wall: f64, parts: &[(Part, f64); 7]) {
+fn report(label: &str, cells: usize, c: &Coupling, wall: f64, parts: &[(Part, f64); 8]) {
     let run = parts
         .iter()
         .find(|(p, _)| *p == Part::Run)
