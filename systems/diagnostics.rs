@@ -94,8 +94,10 @@ const MAX_REPORTED: usize = 20;
 ///
 /// Held in each check system's `Local`, which bevy fills from the world when the system
 /// is initialised — when the pipeline is built, before the first step — so it sees the
-/// initial cloud (on the event core every body is then at t_ref = 0).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// initial cloud (on the event core every body is then at t_ref = 0). A simulation
+/// built without its initial cloud, to be resumed (`SimBuilder::resuming`), gives them
+/// as a resource instead, inserted before it is built.
+#[derive(Resource, Debug, Clone, Copy, PartialEq)]
 pub struct InitialEnergies {
     /// Σ ½ m v² at t = 0 [J].
     pub kinetic: f64,
@@ -105,6 +107,9 @@ pub struct InitialEnergies {
 
 impl FromWorld for InitialEnergies {
     fn from_world(world: &mut World) -> Self {
+        if let Some(given) = world.get_resource::<Self>() {
+            return *given;
+        }
         let c = world.resource::<Material>().C;
         let mut query = world.query_filtered::<(&Mass, &Velocity, &Temperature), With<Particle>>();
         let t = totals(query.iter(world).map(|(m, v, t)| (m.0, v.0, t.0)), c);

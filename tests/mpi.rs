@@ -420,28 +420,113 @@ fn subgrid_bytes(
     bytes
 }
 
-/// Run by `mpirun` from the test below (and a no-op in a plain `cargo test`): rank 0
-/// advances the batch over every rank and writes its bytes to `AGGLO_SUBGRID_OUT`.
+/// A persistent batch (issue 37): 24 cells of the batch above (volume fractions
+/// 0.01–0.05), K = 3 replicas of 60 bodies, persist on (the default). Two macro steps:
+/// the first lifts every box; before the second, each cell's input is what
+/// `apply_rates` left, with every other cell stirred (10 % of it replaced by its first
+/// input), so that half the boxes resume their snapshots and half are adjusted.
+fn persistent_batch() -> (
+    agglo::subgrid::Coupling,
+    Vec<(
+        u64,
+        agglo::subgrid::CellInput,
+        Option<agglo::subgrid::CellState>,
+    )>,
+) {
+    let (mut c, cells) = subgrid_batch();
+    c.persist = true;
+    c.replicas = 3;
+    let cells = cells.into_iter().step_by(11).take(24).collect();
+    (c, cells)
+}
+
+/// The second step's cells of [`persistent_batch`] from the first step's results: the
+/// states carried through their bytes, the inputs as the module doc of
+/// `persistent_batch` says.
+fn second_step(
+    c: &agglo::subgrid::Coupling,
+    first: &[(
+        u64,
+        agglo::subgrid::CellInput,
+        Option<agglo::subgrid::CellState>,
+    )],
+    results: &[Result<
+        (agglo::subgrid::CellOutput, agglo::subgrid::CellState),
+        agglo::subgrid::SubgridError,
+    >],
+) -> Vec<(
+    u64,
+    agglo::subgrid::CellInput,
+    Option<agglo::subgrid::CellState>,
+)> {
+    first
+        .iter()
+        .zip(results)
+        .enumerate()
+        .map(|(i, ((cell, input, _), r))| {
+            let (out, state) = r.as_ref().unwrap();
+            let mut held = agglo::subgrid::apply_rates(c, input, out);
+            if i % 2 == 1 {
+                for (h, f) in held.classes.iter_mut().zip(&input.classes) {
+                    h.number_density = 0.9 * h.number_density + 0.1 * f.number_density;
+                }
+            }
+            let state = agglo::subgrid::CellState::from_bytes(&state.to_bytes()).unwrap();
+            (*cell, held, Some(state))
+        })
+        .collect()
+}
+
+/// Both macro steps of [`persistent_batch`] on `workers`: the outputs and states of
+/// each, as one byte string.
+fn persistent_bytes(workers: &agglo::farm::Workers) -> Vec<u8> {
+    let (c, cells) = persistent_batch();
+    let first = agglo::subgrid::advance_cells(&c, 0, &cells, workers);
+    let second = agglo::subgrid::advance_cells(&c, 1, &second_step(&c, &cells, &first), workers);
+    let mut bytes = subgrid_bytes(first);
+    bytes.extend(subgrid_bytes(second));
+    bytes
+}
+
+/// The case a rank program runs (`AGGLO_SUBGRID_CASE`): the one-step re-lifted batch,
+/// or the two persistent steps.
+fn persistent_case() -> bool {
+    std::env::var("AGGLO_SUBGRID_CASE").is_ok_and(|c| c == "persist")
+}
+
+/// Run by `mpirun` from the tests below (and a no-op in a plain `cargo test`): rank 0
+/// advances the batch over every rank, each rank on `AGGLO_SUBGRID_THREADS` threads
+/// (1), and writes its bytes to `AGGLO_SUBGRID_OUT`.
 #[test]
 fn subgrid_rank_program() {
     let Ok(out) = std::env::var("AGGLO_SUBGRID_OUT") else {
         return;
     };
+    let threads = std::env::var("AGGLO_SUBGRID_THREADS")
+        .ok()
+        .and_then(|t| t.parse().ok())
+        .unwrap_or(1);
     let cluster = agglo::farm::Cluster::init().expect("MPI initialises once");
-    let (c, cells) = subgrid_batch();
+    let (c, cells) = match persistent_case() {
+        true => persistent_batch(),
+        false => subgrid_batch(),
+    };
     if cluster.is_root() {
         let workers = agglo::farm::Workers {
-            threads: 1,
+            threads,
             cluster: Some(&cluster),
         };
         let started = Instant::now();
-        let results = agglo::subgrid::advance_cells(&c, 0, &cells, &workers);
+        let bytes = match persistent_case() {
+            true => persistent_bytes(&workers),
+            false => subgrid_bytes(agglo::subgrid::advance_cells(&c, 0, &cells, &workers)),
+        };
         let seconds = started.elapsed().as_secs_f64();
-        std::fs::write(&out, subgrid_bytes(results)).unwrap();
+        std::fs::write(&out, bytes).unwrap();
         std::fs::write(format!("{out}.seconds"), seconds.to_string()).unwrap();
         cluster.stop(0);
     } else {
-        let code = agglo::subgrid::serve(&c, &cluster, 1);
+        let code = agglo::subgrid::serve(&c, &cluster, threads);
         // MPI is finalised when the cluster is dropped, before the rank leaves.
         drop(cluster);
         assert_eq!(code, 0, "rank 0 stopped this rank with code {code}");
@@ -458,31 +543,81 @@ fn a_subgrid_batch_is_the_same_bytes_on_1_2_and_3_ranks() {
         &cells,
         &agglo::farm::Workers::local(1),
     ));
-    let me = std::env::current_exe().unwrap();
     for ranks in [1, 2, 3] {
-        let out = dir.path().join(format!("ranks{ranks}.bin"));
-        let status = Command::new("mpirun")
-            .args(["--oversubscribe", "-n", &ranks.to_string()])
-            .arg(&me)
-            .args([
-                "--exact",
-                "subgrid_rank_program",
-                "--test-threads=1",
-                "--quiet",
-            ])
-            .env("AGGLO_SUBGRID_OUT", &out)
-            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-            .output()
-            .unwrap();
-        check(status, &format!("the subgrid batch on {ranks} ranks"));
-        let bytes = std::fs::read(&out).unwrap();
-        let seconds = std::fs::read_to_string(dir.path().join(format!("ranks{ranks}.bin.seconds")))
-            .unwrap_or_default();
+        let (bytes, seconds) = subgrid_on_ranks(dir.path(), "relift", ranks, 1);
         eprintln!("256 cells on {ranks} ranks: {seconds} s");
         assert!(
             bytes == local,
             "{ranks} ranks wrote other bytes than one process"
         );
+    }
+}
+
+/// `mpirun -n ranks` of [`subgrid_rank_program`] for `case` on `threads` threads per
+/// rank: its bytes and its seconds (as rank 0 timed them).
+fn subgrid_on_ranks(dir: &Path, case: &str, ranks: usize, threads: usize) -> (Vec<u8>, String) {
+    let me = std::env::current_exe().unwrap();
+    let out = dir.join(format!("{case}_ranks{ranks}_threads{threads}.bin"));
+    let status = Command::new("mpirun")
+        .args(["--oversubscribe", "-n", &ranks.to_string()])
+        .arg(&me)
+        .args([
+            "--exact",
+            "subgrid_rank_program",
+            "--test-threads=1",
+            "--quiet",
+        ])
+        .env("AGGLO_SUBGRID_OUT", &out)
+        .env("AGGLO_SUBGRID_CASE", case)
+        .env("AGGLO_SUBGRID_THREADS", threads.to_string())
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .output()
+        .unwrap();
+    check(
+        status,
+        &format!("the {case} subgrid batch on {ranks} ranks × {threads} threads"),
+    );
+    let bytes = std::fs::read(&out).unwrap();
+    let seconds = std::fs::read_to_string(format!("{}.seconds", out.display())).unwrap_or_default();
+    (bytes, seconds)
+}
+
+#[test]
+fn persistent_subgrid_steps_are_the_same_bytes_on_1_2_and_3_ranks_and_1_and_2_threads() {
+    // Issue 37: two macro steps with the kept boxes carried (resumed and adjusted), the
+    // outputs and the state bytes of both, against one process on one thread.
+    let dir = tempfile::tempdir().unwrap();
+    let local = persistent_bytes(&agglo::farm::Workers::local(1));
+    // Every cell keeps its three boxes' bodies after the first step, so the second
+    // continues them: resumed as they were in the cells left as `apply_rates` put them,
+    // adjusted in the stirred ones.
+    let (c, cells) = persistent_batch();
+    let first = agglo::subgrid::advance_cells(&c, 0, &cells, &agglo::farm::Workers::local(1));
+    let states: Vec<_> = first
+        .iter()
+        .map(|r| r.as_ref().unwrap().1.clone())
+        .collect();
+    assert!(
+        states
+            .iter()
+            .all(|s| s.keeps_bodies() && s.boxes().len() == 3)
+    );
+    assert_eq!(
+        persistent_bytes(&agglo::farm::Workers::local(2)),
+        local,
+        "two threads in one process wrote other bytes than one"
+    );
+    for ranks in [1, 2, 3] {
+        for threads in [1, 2] {
+            let (bytes, seconds) = subgrid_on_ranks(dir.path(), "persist", ranks, threads);
+            eprintln!(
+                "2 persistent steps of 24 cells × 3 boxes on {ranks} ranks × {threads} threads: {seconds} s"
+            );
+            assert!(
+                bytes == local,
+                "{ranks} ranks × {threads} threads wrote other bytes than one process"
+            );
+        }
     }
 }

@@ -83,7 +83,6 @@ impl SimBuilder {
     /// [`Scene::insert_settings`], the others), plus the run state the stages share.
     pub fn new(scene: &dyn Scene) -> Result<Self, SimError> {
         scene.validate()?;
-        let mut world = World::new();
         let material = *scene.material();
         let primary = PrimaryGrain::of(scene.cloud(), scene.domain(), &material);
         let mut rng = SimRng::seeded(scene.seed());
@@ -94,15 +93,61 @@ impl SimBuilder {
             &primary,
             &mut rng.0,
         )?;
+        // Past every id given (explicit bodies may bring their own, e.g. a run's end state).
+        let ids = IdAllocator::after(cloud.iter().map(|b| b.id));
+        let initial_bodies = cloud.len();
+        Self::assemble(scene, primary, rng, cloud, initial_bodies, ids)
+    }
+
+    /// A builder for a simulation that [`Simulation::resume`] will set to `snapshot`
+    /// next: the scene's settings and plugins as [`Self::new`] makes them, but no body
+    /// generated or spawned — the snapshot's bodies arrive with the resume — so that
+    /// resuming a small end state does not first place, check, spawn and predict the
+    /// scene's whole initial cloud only to despawn it (a subgrid box resumed 22 bodies
+    /// out of a 1000-body lifted scene; issue 37).
+    ///
+    /// What a run reads of its initial cloud while it is built must then be given:
+    /// `initial_bodies`, the cloud's body count (the diagnostics' full recount cadence);
+    /// the diagnostics' initial energies (`agglo_systems::diagnostics::InitialEnergies`,
+    /// inserted as a resource before `build`); and, for a scene with a restitution,
+    /// `impact.collapse_time` set (its default is drawn from the initial velocities). The
+    /// rest is the snapshot's: the ids (the range new ids come from), the report's
+    /// initial totals, the core's frame. The scene's random generator is seeded and not
+    /// drawn from — its state after a cloud whose bodies are all given with their
+    /// velocities, the only scenes this resumes as [`Self::new`] would (a generated cloud
+    /// draws from it).
+    pub fn resuming(
+        scene: &dyn Scene,
+        snapshot: &crate::restart::RestartSnapshot,
+        initial_bodies: usize,
+    ) -> Result<Self, SimError> {
+        scene.validate()?;
+        let material = *scene.material();
+        let primary = PrimaryGrain::of(scene.cloud(), scene.domain(), &material);
+        let rng = SimRng::seeded(scene.seed());
+        let ids = IdAllocator::after(snapshot.bodies.iter().map(|b| b.id));
+        Self::assemble(scene, primary, rng, Vec::new(), initial_bodies, ids)
+    }
+
+    /// The world holding `cloud` and the scene's resources, with an empty pipeline, for a
+    /// run that starts with `initial_bodies` bodies (the cloud's, or a snapshot's).
+    fn assemble(
+        scene: &dyn Scene,
+        primary: PrimaryGrain,
+        rng: SimRng,
+        cloud: Vec<BodyState>,
+        initial_bodies: usize,
+        ids: IdAllocator,
+    ) -> Result<Self, SimError> {
+        let mut world = World::new();
+        let material = *scene.material();
         let time = scene.time();
         let physics = scene.physics();
         let info = RunInfo {
             name: scene.name().to_string(),
             seed: scene.seed(),
-            initial_bodies: cloud.len(),
+            initial_bodies,
         };
-        // Past every id given (explicit bodies may bring their own, e.g. a run's end state).
-        let ids = IdAllocator::after(cloud.iter().map(|b| b.id));
         let initial = totals(
             cloud.iter().map(|b| (b.mass, b.velocity, b.temperature)),
             material.C,

@@ -340,17 +340,7 @@ impl Cluster {
                     }
                     _ => {
                         let (bytes, _) = (msg, status).matched_receive_vec::<u8>();
-                        match decode::<T>(&bytes) {
-                            Ok(e) => {
-                                keys.insert(next_key, (e.batch, e.id));
-                                local.submit(next_key, (e.payload, Instant::now()));
-                                next_key += 1;
-                            }
-                            Err(e) => {
-                                eprintln!("rank {}: {e}", self.rank());
-                                self.world.abort(2)
-                            }
-                        }
+                        self.accept_task(&bytes, local, &mut keys, &mut next_key);
                     }
                 }
                 backoff = Backoff(0);
@@ -374,11 +364,60 @@ impl Cluster {
                     compute_seconds: seconds,
                     payload: output,
                 });
-                root.send_with_tag(&bytes[..], TAG_RESULT);
+                // A result can be too large for MPI to buffer (a persistent subgrid box
+                // carries its snapshot): a blocking send then waits until rank 0 receives
+                // it, while rank 0 may be blocked sending this rank a task of the same size
+                // — each waiting for the other for ever (tests/mpi.rs's persistent
+                // subgrid steps hung so on 2 ranks). So the send is immediate, and tasks
+                // are received while it completes.
+                mpi::request::scope(|scope| {
+                    let mut sending = root.immediate_send_with_tag(scope, &bytes[..], TAG_RESULT);
+                    let mut waiting = Backoff(0);
+                    loop {
+                        match sending.test() {
+                            Ok(_) => break,
+                            Err(pending) => sending = pending,
+                        }
+                        match root.immediate_matched_probe_with_tag(TAG_TASK) {
+                            Some(probed) => {
+                                let (task, _) = probed.matched_receive_vec::<u8>();
+                                self.accept_task(&task, local, &mut keys, &mut next_key);
+                                waiting = Backoff(0);
+                            }
+                            None => waiting.wait(),
+                        }
+                    }
+                });
                 backoff = Backoff(0);
                 continue;
             }
             backoff.wait();
+        }
+    }
+
+    /// A worker rank: decode a TASK message's `bytes` and queue the task on `local`
+    /// under a new key (its batch and id kept in `keys`); aborts the job on bytes that
+    /// do not decode.
+    fn accept_task<T, O>(
+        &self,
+        bytes: &[u8],
+        local: &LocalPool<'_, (T, Instant), (O, f64, f64)>,
+        keys: &mut HashMap<u64, (u64, u64)>,
+        next_key: &mut u64,
+    ) where
+        T: DeserializeOwned + Send,
+        O: Serialize + Send,
+    {
+        match decode::<T>(bytes) {
+            Ok(e) => {
+                keys.insert(*next_key, (e.batch, e.id));
+                local.submit(*next_key, (e.payload, Instant::now()));
+                *next_key += 1;
+            }
+            Err(e) => {
+                eprintln!("rank {}: {e}", self.rank());
+                self.world.abort(2)
+            }
         }
     }
 }

@@ -32,6 +32,18 @@ pub fn builder(scenario: &Scenario) -> Result<SimBuilder, SimError> {
     registry::build(scenario, &scenario.plugins)
 }
 
+/// [`builder`] for a simulation to be resumed from `snapshot` next, whose run started
+/// with `initial_bodies` bodies (`SimBuilder::resuming`: the scene's initial cloud is
+/// neither placed nor spawned; what else must be given is listed there).
+pub fn resuming_builder(
+    scenario: &Scenario,
+    snapshot: &agglo_engine::restart::RestartSnapshot,
+    initial_bodies: usize,
+) -> Result<SimBuilder, SimError> {
+    let builder = SimBuilder::resuming(scenario, snapshot, initial_bodies)?;
+    Ok(registry::with_plugins(builder, &scenario.plugins))
+}
+
 /// The scenario's simulation with the built-in physics and the registered extensions.
 pub fn simulation(scenario: &Scenario) -> Result<Simulation, SimError> {
     builder(scenario)?.build()

@@ -275,9 +275,17 @@ pub fn add_extensions(builder: &mut SimBuilder, sections: &Sections) {
 /// The builder of `scene` (whose plugin sections are `sections`) with the built-in
 /// physics and the registered extensions.
 pub(crate) fn build(scene: &dyn Scene, sections: &Sections) -> Result<SimBuilder, SimError> {
+    Ok(with_plugins(
+        crate::schedule::Simulation::builder(scene)?,
+        sections,
+    ))
+}
+
+/// `builder` with the built-in physics and the registered extensions (`sections`: the
+/// scene's plugin sections).
+pub(crate) fn with_plugins(mut builder: SimBuilder, sections: &Sections) -> SimBuilder {
     use agglo_systems::AddDefaultPlugins;
-    let mut builder = crate::schedule::Simulation::builder(scene)?;
     builder.add_default_plugins();
     add_extensions(&mut builder, sections);
-    Ok(builder)
+    builder
 }

@@ -5,42 +5,113 @@
 use serde::{Deserialize, Serialize};
 
 use crate::kernel::{Accumulating, Accumulator, Sampling, Window};
+use agglo_systems::diagnostics::InitialEnergies;
+use agglo_systems::impact::CollapseGuard;
+use bevy_ecs::world::FromWorld;
+
+use crate::cloud::PlacedBody;
 use crate::scenario::Scenario;
+use crate::schedule::Simulation;
 use agglo_engine::restart::RestartSnapshot;
 
 use super::adjust::adjusted_box;
 use super::config::Coupling;
 use super::error::SubgridError;
 use super::exchange::CellInput;
-use super::lift::{gas_field, lift, replica_seed};
+use super::lift::{box_scene, lift, replica_seed};
 use super::profile::{self, Part, timed};
 use super::restrict::{ClassSums, Replica};
 use crate::resources::{Counters, EnergyLedger};
 
 /// Layout version of [`CellState::to_bytes`]; bumped when it changes (3: the CRC-32
 /// after the postcard bytes, issue 39; 4: each remembered class's granular
-/// anisotropy, issue 37).
-pub const STATE_VERSION: u32 = 4;
+/// anisotropy, issue 37; 5: a kept box holds its scene's seed instead of the scene,
+/// issue 37).
+pub const STATE_VERSION: u32 = 5;
 
-/// A kept box between macro steps: the scene it was lifted as and the restart
-/// snapshot at the end of the last step (engine/restart.rs), from which the next step
-/// continues bit for bit. With `persist`, a box whose Poisson draw held no body is kept
-/// as empty (both fields empty) and lifted afresh at the next step: it remembers
-/// nothing.
+/// A kept box between macro steps: the restart snapshot at the end of the last step
+/// (engine/restart.rs), from which the next step continues bit for bit, and the seed of
+/// the scene it was lifted (or adjusted) as. The rest of that scene follows from the
+/// coupling, the cell's box volume and the step's gas (`lift::box_scene`), so it is
+/// not stored: a resumed box is built from its settings and the snapshot's bodies
+/// alone, not from the bodies it was lifted with (issue 37: re-reading a 1000-body
+/// lifted scene to resume 22 bodies cost 7 × their run). With `persist`, a box whose
+/// Poisson draw held no body is kept as empty (no snapshot) and lifted afresh at the
+/// next step: it remembers nothing.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct KeptBox {
-    /// The lifted scenario, as JSON (its sections skip defaults, which a compact
-    /// encoding cannot carry).
-    pub scenario: String,
+    /// The seed of the box's scene (its random generator's, `Scenario::seed`).
+    pub seed: u64,
+    /// What the box's run read of its first bodies when it was built.
+    pub start: BoxStart,
     /// [`RestartSnapshot::encode`]'s bytes.
     pub snapshot: Vec<u8>,
+}
+
+/// What a box's run reads of its initial bodies while its simulation is built, kept so
+/// that a resumed box, built without them (`SimBuilder::resuming`), runs as the box
+/// continuing would: the body count (the invariant checks' full recount cadence), the
+/// initial kinetic and thermal energy (the references of the energy ledgers' checks)
+/// and the collapse time of the TC model (drawn from the initial velocities when the
+/// scene has a restitution and gives none; 0 when off).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct BoxStart {
+    /// Bodies at the start of the box's run.
+    pub bodies: u64,
+    /// Σ ½ m v² at the start [J].
+    pub kinetic: f64,
+    /// Σ m C θ at the start [J].
+    pub thermal: f64,
+    /// t_c of the TC model [s] (0: off).
+    pub collapse_time: f64,
+}
+
+impl BoxStart {
+    /// Read from a box's simulation built from its scene, before it runs.
+    fn of(sim: &mut Simulation) -> Self {
+        let bodies = sim.info().initial_bodies as u64;
+        let world = sim.world_mut();
+        // The value each check system's `Local` was filled with when the pipeline was
+        // built: the same bodies in the same order, not yet moved.
+        let energies = InitialEnergies::from_world(world);
+        let collapse_time = world.get_resource::<CollapseGuard>().map_or(0.0, |g| g.t_c);
+        Self {
+            bodies,
+            kinetic: energies.kinetic,
+            thermal: energies.thermal,
+            collapse_time,
+        }
+    }
+
+    /// Each field in range (a state read back is checked before a box is built).
+    fn check(&self) -> Result<(), String> {
+        // A scene's cloud holds 1 to 2³² − 2 bodies (`cloud.count`).
+        if !(1..u32::MAX as u64).contains(&self.bodies) {
+            return Err(format!(
+                "start.bodies = {} (must be ≥ 1 and < {})",
+                self.bodies,
+                u32::MAX
+            ));
+        }
+        for (name, x) in [
+            ("kinetic", self.kinetic),
+            ("thermal", self.thermal),
+            ("collapse_time", self.collapse_time),
+        ] {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(format!("start.{name} = {x:e} (must be ≥ 0 and finite)"));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl KeptBox {
     /// The kept form of a box that holds no body (persist only).
     fn empty() -> Self {
         Self {
-            scenario: String::new(),
+            seed: 0,
+            start: BoxStart::default(),
             snapshot: Vec::new(),
         }
     }
@@ -157,6 +228,11 @@ impl CellState {
                 self.volume,
                 f64::MIN_POSITIVE
             ));
+        }
+        for (r, kept) in self.boxes.iter().enumerate() {
+            if !kept.is_empty() {
+                kept.start.check().map_err(|e| format!("boxes[{r}].{e}"))?;
+            }
         }
         if let Some(e) = &self.expected {
             for (k, class) in e.classes.iter().enumerate() {
@@ -293,7 +369,7 @@ pub fn run_replica(
     };
     // A persistent box that held nothing has nothing to continue: lifted afresh.
     let kept = kept.filter(|k| !k.is_empty());
-    let (scenario, snapshot) = match kept {
+    let scenario = match kept {
         None => {
             let seed = replica_seed(c.base.seed, cell, macro_step, replica);
             let s =
@@ -304,7 +380,7 @@ pub fn run_replica(
             if s.cloud.bodies.is_empty() {
                 return empty_box(c, cell, replica, volume);
             }
-            (s, None)
+            s
         }
         Some(kept) => {
             let snapshot = timed(Part::Restore, || RestartSnapshot::decode(&kept.snapshot))
@@ -327,28 +403,44 @@ pub fn run_replica(
                 }
                 return run_scene(c, cell, replica, s, None);
             }
-            let read = timed(Part::Restore, || Scenario::from_json(&kept.scenario));
-            let mut s = read.map_err(|e| SubgridError::State {
-                cell,
-                reason: format!("replica {replica}: the kept scene does not read: {e}"),
-            })?;
-            // The gas of this step; the box's clock runs on from the snapshot's time.
-            s.material.theta0 = input.gas.temperature;
-            s.field = gas_field(c, input);
+            // The box's settings in the gas of this step; its clock runs on from the
+            // snapshot's time, and its bodies are the snapshot's.
+            let mut s = timed(Part::Restore, || {
+                box_scene(c, input, volume.cbrt(), kept.seed, vec![placeholder(input)])
+            });
             s.time.end = snapshot.time() + input.dt;
-            (s, Some(snapshot))
+            if s.impact.restitution.is_some() && s.impact.collapse_time.is_none() {
+                s.impact.collapse_time = Some(kept.start.collapse_time);
+            }
+            return run_scene(c, cell, replica, s, Some((snapshot, kept.start)));
         }
     };
-    run_scene(c, cell, replica, scenario, snapshot)
+    run_scene(c, cell, replica, scenario, None)
 }
 
-/// Run `scenario` over its end time (from `snapshot`, when given) and measure it.
+/// The one body of a resumed box's scene: a primary grain at rest at the origin, in the
+/// step's gas. It is never spawned (`SimBuilder::resuming`); it is there because a
+/// scene's cloud holds at least one body, and one body is checked in no time.
+fn placeholder(input: &CellInput) -> PlacedBody {
+    PlacedBody {
+        position: [0.0; 3],
+        velocity: Some([0.0; 3]),
+        primaries: 1.0,
+        id: Some(0),
+        temperature: Some(input.gas.temperature),
+        mass: None,
+        radius: None,
+    }
+}
+
+/// Run `scenario` over its end time (resumed from a kept box's snapshot and start, when
+/// given) and measure it.
 fn run_scene(
     c: &Coupling,
     cell: u64,
     replica: u32,
     scenario: Scenario,
-    snapshot: Option<RestartSnapshot>,
+    resume: Option<(RestartSnapshot, BoxStart)>,
 ) -> Result<ReplicaRun, SubgridError> {
     let fail = |reason: String| SubgridError::Run {
         cell,
@@ -356,17 +448,44 @@ fn run_scene(
         reason,
     };
     let built = profile::start();
+    // A resumed box is built without its scene's cloud (`placeholder`): the snapshot
+    // brings the bodies.
+    let builder = match &resume {
+        None => crate::plugins::builder(&scenario),
+        Some((snapshot, start)) => {
+            crate::plugins::resuming_builder(&scenario, snapshot, start.bodies as usize).map(
+                |mut b| {
+                    b.insert_resource(InitialEnergies {
+                        kinetic: start.kinetic,
+                        thermal: start.thermal,
+                    });
+                    b
+                },
+            )
+        }
+    };
+    let mut builder = builder.map_err(|e| fail(e.to_string()))?;
     // Only a box that measures the kernel collects the impact, merge and fragment
     // messages its accumulator reads.
-    let simulation = match c.kernel {
-        true => crate::kernel::simulation(&scenario),
-        false => crate::plugins::simulation(&scenario),
-    };
-    let mut sim = simulation.map_err(|e| fail(e.to_string()))?;
-    if let Some(snapshot) = &snapshot {
-        sim.resume(snapshot).map_err(|e| fail(e.to_string()))?;
+    if c.kernel {
+        crate::kernel::subscribe(&mut builder);
     }
     profile::add(Part::Build, built);
+    // The event core's first prediction of every body happens here (a finisher of
+    // `build`, or the core rebuilt by `resume`): what a direct run of the box does
+    // first, timed apart from assembling the box.
+    let calendar = profile::start();
+    let mut sim = builder.build().map_err(|e| fail(e.to_string()))?;
+    let keeps = c.keep_bodies || c.persist;
+    let box_start = match resume {
+        Some((snapshot, start)) => {
+            sim.resume(&snapshot).map_err(|e| fail(e.to_string()))?;
+            start
+        }
+        None if keeps => BoxStart::of(&mut sim),
+        None => BoxStart::default(),
+    };
+    profile::add(Part::Calendar, calendar);
     let start = timed(Part::Restrict, || ClassSums::of(c, &sim.bodies()));
     let running = profile::start();
     let (ledger0, counters0) = (sim.ledger(), sim.counters());
@@ -391,12 +510,13 @@ fn run_scene(
         &counters0,
         &sim.counters(),
     );
-    let kept = (c.keep_bodies || c.persist).then(|| {
+    let kept = keeps.then(|| {
         timed(Part::Keep, || {
             // The run is complete: every body is at the end time (Simulation::run_until).
             let snapshot = agglo_engine::restart::capture(sim.world_mut());
             KeptBox {
-                scenario: scenario.to_json(),
+                seed: scenario.seed,
+                start: box_start,
                 snapshot: snapshot.encode(),
             }
         })

@@ -173,7 +173,10 @@ pub struct ClassOutput {
     /// p_k = ρ_k u_k (an emptied class, ρ_k + Δt·rate ≤ 0, has none). Over the classes,
     /// fluctuation plus mean-flow energy change exactly as the field's work less the
     /// impact dissipation: a solver transporting ½ρ_k·3T_k with this rate closes its
-    /// kinetic energy (docs/model.md §15).
+    /// kinetic energy (docs/model.md §15). Its SE is the replicas' spread of their
+    /// kinetic energy rate less the mean-flow change linearised about the handed-back
+    /// rates (the delta method), so that energy moved with the momentum along the drift
+    /// does not count as noise.
     pub fluctuation_energy_rate: Stat,
     /// Rate of the class's thermal energy density C Σmθ / V [W/m³]; over the classes it
     /// is the dissipation, reaction heat, fracture energy and cooling loss rates'

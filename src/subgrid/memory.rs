@@ -23,10 +23,11 @@ use super::error::SubgridError;
 /// of 786–824 B per body (issue 39 saw 816 MB at 1e6).
 pub const LIFT_BYTES_PER_BODY: f64 = 350.0;
 
-/// Bytes per body a kept box takes in the cell's state [B]: the lifted scene as JSON
-/// and the restart snapshot (tests/suite/subgrid_harden.rs measures a kept state's
-/// bytes per body and checks it is below this).
-pub const KEPT_BYTES_PER_BODY: f64 = 600.0;
+/// Bytes per body a kept box takes in the cell's state [B]: its restart snapshot's row
+/// (an id and twelve f64; tests/suite/subgrid_harden.rs measures a kept state's bytes
+/// per body, 98 B, and checks it is below this). Until issue 37's cost work a kept box also
+/// held its lifted scene as JSON, and this was 600.
+pub const KEPT_BYTES_PER_BODY: f64 = 120.0;
 
 /// The memory a cell's step needs [B]: `at_once` boxes of `bodies` running, and
 /// `kept` boxes of `bodies` held in the state.
@@ -92,11 +93,11 @@ mod tests {
         );
         // (4e9 − 16e6) / 1000 bodies fit.
         assert!(e.contains("at most 3.984e6 bodies"), "{e}");
-        // Two threads and four kept boxes: 2 × 1000 + 4 × 600 B per body.
+        // Two threads and four kept boxes: 2 × 1000 + 4 × 120 B per body.
         let e = check_memory(3, 1e6, 2, 4, Some(4e9))
             .unwrap_err()
             .to_string();
-        assert!(e.contains("4400 B per body"), "{e}");
+        assert!(e.contains("2480 B per body"), "{e}");
         assert!(check_memory(3, 1e6, 2, 0, Some(4e9)).is_ok());
         assert!(check_memory(3, 1e12, 1, 0, None).is_ok());
     }

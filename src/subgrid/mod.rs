@@ -63,7 +63,7 @@ pub use adjust::apply_rates;
 #[cfg(feature = "mpi")]
 pub use batch::serve;
 pub use batch::{ReplicaTask, VOLUME_TIME_RANGE, advance_cell, advance_cells, run_task};
-pub use cell::{CellState, KeptBox, ReplicaRun, STATE_VERSION};
+pub use cell::{BoxStart, CellState, KeptBox, ReplicaRun, STATE_VERSION};
 pub use config::{BoxSize, Coupling, MAX_BODIES, MAX_REPLICAS};
 pub use error::SubgridError;
 pub use exchange::{

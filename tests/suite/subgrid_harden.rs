@@ -142,7 +142,8 @@ fn a_box_too_large_for_the_memory_is_refused_with_the_estimate_before_it_is_lift
         e.starts_with("cell 6: bodies = 1.002e7 per box (1 boxes running at once and 100000 kept"),
         "{e}"
     );
-    assert!(e.contains("60001000 B per body of a box"), "{e}");
+    // 1000 B per running body + 1e5 kept boxes × 120 B.
+    assert!(e.contains("12001000 B per body of a box"), "{e}");
     // The same box sized by a target standard error that picks max_bodies.
     c.bodies = BoxSize::TargetSe {
         relative: 1e-300,
