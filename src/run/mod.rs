@@ -250,8 +250,13 @@ impl RunPlan {
     }
 
     /// The restart file this plan writes, if the scenario takes checkpoints: `restart`,
-    /// else the resumed file, else the section's path, else beside the recording.
+    /// else the resumed file, else the section's path, else beside the recording. None
+    /// for one run of many ([`RunPlan::unwritten`]): an ensemble's samples, a study's
+    /// settings and `agglo kernel`'s seeds would each write (over) the same file.
     pub fn restart_file(&self) -> Option<PathBuf> {
+        if self.one_of_many {
+            return None;
+        }
         crate::restart::restart_path(
             &self.scenario,
             self.restart

@@ -419,3 +419,30 @@ fn sighup_then_resume_ends_as_the_uninterrupted_run_stepped_core() {
 fn outside_sigkill_then_resume_ends_as_the_uninterrupted_run_stepped_core() {
     signalled_and_resumed(libc::SIGKILL, "stepped", false);
 }
+
+/// One run of many (an ensemble's sample, a study's setting, `agglo kernel`'s seed:
+/// `RunPlan::unwritten`) writes no checkpoints, even when its scenario asks for them:
+/// each would write over the same file (the fuzz tests left `fuzz_seed.restart` in the
+/// working directory after the kernel began to run through `Run`).
+#[test]
+fn one_run_of_many_writes_no_checkpoints() {
+    use agglo::run::{Run, RunPlan};
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("sample.restart");
+    let scene = quick_demo(json!({
+        "time": { "end": 2e-4 },
+        "output": { "restart": { "every": 5e-5, "path": s(&file) } }
+    }));
+    let scenario = Scenario::from_value(scene).unwrap();
+    let (_, outcome) = Run::complete(RunPlan::unwritten(scenario.clone()), Vec::new()).unwrap();
+    outcome.unwrap();
+    assert!(!file.exists(), "one run of many wrote {}", file.display());
+    // The same scenario as a run of its own writes them.
+    let (_, outcome) = Run::complete(RunPlan::new(scenario).unwrap(), Vec::new()).unwrap();
+    outcome.unwrap();
+    assert!(
+        file.exists(),
+        "a run of its own wrote no {}",
+        file.display()
+    );
+}
