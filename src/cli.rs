@@ -319,7 +319,7 @@ fn run_plan(args: &RunArgs) -> anyhow::Result<RunPlan> {
     if let Some(path) = &args.final_state {
         plan.final_state = Some(path.clone());
     }
-    if let Some(path) = &args.out {
+    if let Some(path) = &args.recording {
         plan.recording = Some(path.clone());
     }
     plan.restart = args.restart.clone();

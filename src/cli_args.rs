@@ -48,7 +48,7 @@ pub enum Command {
     },
     /// Summarise an MCAP recording: channels, counts, duration, scenario, final statistics.
     Inspect {
-        /// Recording (MCAP) written by `agglo run --out`.
+        /// Recording (MCAP) written by `agglo run --recording`.
         file: PathBuf,
         /// Print JSON instead of text.
         #[arg(long)]
@@ -57,7 +57,7 @@ pub enum Command {
     /// Write a Foxglove layout fitted to a recording's box (camera distance and near plane
     /// from its half-width D).
     Layout {
-        /// Recording (MCAP) written by `agglo run --out`.
+        /// Recording (MCAP) written by `agglo run --recording`.
         file: PathBuf,
         /// Where to write the layout [default: next to the recording, RUN.layout.json].
         #[arg(long, value_name = "FILE")]
@@ -173,7 +173,7 @@ pub struct RunArgs {
     /// (written by a scene with `output.restart`; given the run's recording, the restart
     /// file beside it): the final state and summary counters are those of the
     /// uninterrupted run. The scenario is the one embedded in the file;
-    /// its output paths are ignored (pass --out / --final-state / --summary / tables);
+    /// its output paths are ignored (pass --recording / --final-state / --summary / tables);
     /// checkpoints go on being written to the same file (or --restart).
     #[arg(long, value_name = "RESTART", conflicts_with_all = ["from", "set", "seed"])]
     pub resume: Option<PathBuf>,
@@ -182,13 +182,14 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub restart: Option<PathBuf>,
     /// Re-run the scenario embedded in this recording (MCAP); the output paths it names are
-    /// ignored (pass --out / --final-state / --summary).
+    /// ignored (pass --recording / --final-state / --summary).
     #[arg(long, value_name = "RECORDING")]
     pub from: Option<PathBuf>,
     /// Record the run to this MCAP file for Foxglove (overrides `output.mcap`); a
     /// Foxglove layout fitted to the box is written beside it (RUN.layout.json).
-    #[arg(long, value_name = "FILE")]
-    pub out: Option<PathBuf>,
+    /// `--out` is its old name, still accepted.
+    #[arg(long, value_name = "FILE", visible_alias = "out")]
+    pub recording: Option<PathBuf>,
     /// Override the scenario's seed.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -284,7 +285,7 @@ pub struct ScanArgs {
 pub struct LiveArgs {
     /// Serve the run live over the Foxglove WebSocket protocol on ADDR (HOST:PORT,
     /// default 127.0.0.1:8765): in Foxglove, open a connection → Foxglove WebSocket →
-    /// ws://ADDR. Same channels as a recording (--out); the results are unchanged.
+    /// ws://ADDR. Same channels as a recording (--recording); the results are unchanged.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_ADDR)]
     pub live: Option<String>,
     /// With --live: hold the start until a client subscribes.

@@ -45,7 +45,7 @@ class Simulation:
         until: Optional[float] = None,
         tables: Optional[Dict[str, Optional[str]]] = None,
         sampling: Optional[str] = None,
-        record: Optional[str] = None,
+        recording: Optional[str] = None,
         summary: Optional[str] = None,
         final_state: Optional[str] = None,
         live: Optional[str] = None,

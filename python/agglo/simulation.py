@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from typing import Any, Dict, Iterable, Mapping, Optional, Union
 
 from . import _agglo
@@ -85,12 +86,13 @@ class Simulation:
         *,
         tables: Optional[TableSpec] = None,
         sampling: Optional[Mapping[str, Any]] = None,
-        record: Optional[Union[str, os.PathLike]] = None,
+        recording: Optional[Union[str, os.PathLike]] = None,
         summary: Optional[Union[str, os.PathLike]] = None,
         final_state: Optional[Union[str, os.PathLike]] = None,
         live: Union[bool, str, None] = None,
         progress: bool = False,
         command_line: Optional[str] = None,
+        record: Optional[Union[str, os.PathLike]] = None,
     ) -> bool:
         """Advance to ``until`` [s] (the first step boundary at or after it), or to the
         end time T. Returns True once T is reached; the outputs are then finalised.
@@ -103,13 +105,20 @@ class Simulation:
         - ``sampling``: when tables are sampled, as ``output.sampling`` in a scenario:
           ``{"interval": {"dt": 1e-3}}``, ``{"log": {"per_decade": 10}}``,
           ``{"steps": {"every": 100}}``;
-        - ``record``: an MCAP recording for Foxglove (a layout is written beside it);
+        - ``recording``: an MCAP recording for Foxglove (a layout is written beside it;
+          ``agglo run --recording``; ``record`` is its deprecated old name);
         - ``summary``, ``final_state``: files as ``--summary`` and ``--final-state``;
         - ``live``: True or "HOST:PORT" to serve the run to Foxglove live;
         - ``progress``: a progress line on stderr (on a terminal);
         - ``command_line``: the text the recording keeps as its command line (default
           ``python: agglo.Simulation.run``; give ``agglo run``'s to get its exact bytes).
         """
+        if record is not None:
+            if recording is not None:
+                raise TypeError("run: give recording= alone (record= is its old name)")
+            warnings.warn("Simulation.run(record=...) is now run(recording=...)",
+                          DeprecationWarning, stacklevel=2)
+            recording = record
         table_map: Optional[Dict[str, Optional[str]]] = None
         if tables is not None:
             if isinstance(tables, Mapping):
@@ -126,7 +135,7 @@ class Simulation:
             until=None if until is None else float(until),
             tables=table_map,
             sampling=None if sampling is None else json.dumps(sampling),
-            record=None if record is None else os.fspath(record),
+            recording=None if recording is None else os.fspath(recording),
             summary=None if summary is None else os.fspath(summary),
             final_state=None if final_state is None else os.fspath(final_state),
             live=live,

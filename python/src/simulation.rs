@@ -105,7 +105,7 @@ impl ClockMirror {
 struct Outputs {
     tables: BTreeMap<String, Option<PathBuf>>,
     sampling: Option<String>,
-    record: Option<PathBuf>,
+    recording: Option<PathBuf>,
     summary: Option<PathBuf>,
     final_state: Option<PathBuf>,
     live: Option<String>,
@@ -117,7 +117,7 @@ impl Outputs {
     fn any(&self) -> bool {
         !self.tables.is_empty()
             || self.sampling.is_some()
-            || self.record.is_some()
+            || self.recording.is_some()
             || self.summary.is_some()
             || self.final_state.is_some()
             || self.live.is_some()
@@ -184,7 +184,7 @@ impl Inner {
         }
         if !self.fresh() || self.has_outputs {
             return Err(scenario_error(
-                "run: outputs (tables, sampling, record, summary, final_state, live, progress) are \
+                "run: outputs (tables, sampling, recording, summary, final_state, live, progress) are \
                  chosen before the first step, once: make a new Simulation to write them",
             ));
         }
@@ -227,7 +227,7 @@ impl Inner {
             plan.set_sampling(schedule)
                 .map_err(|e| scenario_error(format!("run: {e}")))?;
         }
-        if let Some(path) = outputs.record {
+        if let Some(path) = outputs.recording {
             plan.recording = Some(path);
         }
         if let Some(path) = outputs.summary {
@@ -427,11 +427,11 @@ impl Simulation {
     /// Advance to `until` [s] (the first step boundary at or after it; None: to T),
     /// writing the outputs chosen (before the first step): `tables` maps a table name
     /// (series, sizes, snapshots, collisions) to a path, or to None to keep it in memory;
-    /// `sampling` is the JSON of `output.sampling`; `record`, `summary`, `final_state`
+    /// `sampling` is the JSON of `output.sampling`; `recording`, `summary`, `final_state`
     /// are paths; `live` an address to serve the run on; `command_line` what the
     /// recording keeps as its command line. Returns True once T is reached
     /// (the outputs are then finalised).
-    #[pyo3(signature = (until=None, tables=None, sampling=None, record=None, summary=None, final_state=None, live=None, progress=false, command_line=None))]
+    #[pyo3(signature = (until=None, tables=None, sampling=None, recording=None, summary=None, final_state=None, live=None, progress=false, command_line=None))]
     #[allow(clippy::too_many_arguments)]
     fn run(
         &self,
@@ -439,7 +439,7 @@ impl Simulation {
         until: Option<f64>,
         tables: Option<BTreeMap<String, Option<PathBuf>>>,
         sampling: Option<String>,
-        record: Option<PathBuf>,
+        recording: Option<PathBuf>,
         summary: Option<PathBuf>,
         final_state: Option<PathBuf>,
         live: Option<String>,
@@ -458,7 +458,7 @@ impl Simulation {
             inner.choose_outputs(Outputs {
                 tables: tables.unwrap_or_default(),
                 sampling,
-                record,
+                recording,
                 summary,
                 final_state,
                 live,

@@ -41,7 +41,7 @@ def test_a_run_writes_the_bytes_agglo_run_writes(scenarios, agglo_bin, tmp_path)
     assert sim.run(
         tables={t: py / n for t, n in names.items()},
         sampling={"interval": {"dt": 1e-4}},
-        record=py / "run.mcap",
+        recording=py / "run.mcap",
         final_state=py / "final.csv",
         summary=py / "summary.json",
         command_line=with_live_flags_left_out,
@@ -162,7 +162,7 @@ def test_ctrl_c_raises_keyboard_interrupt_and_the_run_continues_to_the_same_byte
 
 def test_a_simulation_dropped_early_leaves_a_finalised_recording(scenarios, agglo_bin, tmp_path):
     sim = agglo.Simulation(quick(scenarios), seed=1)
-    sim.run(until=2e-4, record=tmp_path / "cut.mcap")
+    sim.run(until=2e-4, recording=tmp_path / "cut.mcap")
     del sim
     report = subprocess.run([str(agglo_bin), "inspect", "--json", str(tmp_path / "cut.mcap")],
                             capture_output=True, text=True, check=True)
@@ -202,6 +202,19 @@ def test_ensemble_keeps_a_registered_per_step_table(scenarios, tmp_path):
     pd.testing.assert_frame_equal(mine, alone, check_dtype=False)
 
 
+def test_record_is_the_deprecated_name_of_recording(scenarios, tmp_path):
+    """run(record=...) still writes the recording, with a DeprecationWarning; given
+    with recording= too it is refused."""
+    sim = agglo.Simulation(quick(scenarios))
+    with pytest.warns(DeprecationWarning, match="recording="):
+        sim.run(until=2e-4, record=tmp_path / "old.mcap")
+    sim.run()
+    assert (tmp_path / "old.mcap").stat().st_size > 0
+    with pytest.raises(TypeError, match="recording= alone"):
+        agglo.Simulation(quick(scenarios)).run(record=tmp_path / "a.mcap",
+                                               recording=tmp_path / "b.mcap")
+
+
 def test_two_simulations_run_on_two_python_threads(scenarios):
     """The GIL is released while stepping: both runs progress and give their own
     results (the speed-up is measured in python/bench.py)."""
@@ -235,7 +248,7 @@ def test_errors_name_the_field_and_no_panic_crosses(scenarios, tmp_path):
     with pytest.raises(agglo.ScenarioError, match="until"):
         sim.run(until=float("nan"))
     with pytest.raises(agglo.AggloError):
-        agglo.Simulation(quick(scenarios)).run(record=tmp_path / "no" / "such" / "dir.mcap")
+        agglo.Simulation(quick(scenarios)).run(recording=tmp_path / "no" / "such" / "dir.mcap")
     with pytest.raises(agglo.ScenarioError, match="seeds"):
         agglo.ensemble(quick(scenarios), seeds=[])
 
@@ -313,11 +326,11 @@ def test_an_exception_in_a_hook_stops_the_run_naming_the_step_and_time(scenarios
 
 
 def test_an_output_that_cannot_be_opened_leaves_the_simulation_usable(scenarios, tmp_path):
-    """run(record=...) into a directory that does not exist fails, and the simulation
+    """run(recording=...) into a directory that does not exist fails, and the simulation
     is as it was: it runs to the end without that output (it refused every later call)."""
     sim = agglo.Simulation(quick(scenarios), seed=5)
     with pytest.raises(agglo.AggloError, match="missing"):
-        sim.run(record=tmp_path / "missing" / "x.mcap")
+        sim.run(recording=tmp_path / "missing" / "x.mcap")
     assert sim.t == 0
     assert sim.run() is True and sim.finished
     plain = agglo.Simulation(quick(scenarios), seed=5)

@@ -121,7 +121,7 @@ pub struct Output {
     /// Write the final state CSV here (same as `--final-state`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub final_state: Option<String>,
-    /// Record the run to this MCAP file (same as `--out`).
+    /// Record the run to this MCAP file (same as `--recording`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mcap: Option<String>,
     /// Write the time series here (same as `--series`; Parquet if it ends in `.parquet`).

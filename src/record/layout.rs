@@ -4,7 +4,7 @@
 //! Foxglove's 3D camera is set in metres, so one camera cannot serve every scene: P04's
 //! box is 2 cm wide (D = 1e-2 m), P02's 20 µm (D = 1e-5 m). A fitted layout is the
 //! generic one with the 3D panel's camera distance, near and far planes scaled by D
-//! ([`CameraFit`]). `agglo run --out RUN.mcap` writes one as `RUN.layout.json`
+//! ([`CameraFit`]). `agglo run --recording RUN.mcap` writes one as `RUN.layout.json`
 //! ([`layout_path_for`]); `agglo layout RUN.mcap` writes one for an existing recording,
 //! reading D from it ([`box_half_width`]).
 
@@ -97,7 +97,7 @@ fn set_camera(config: &mut Value, fit: CameraFit) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Where `agglo run --out RUN.mcap` puts its layout: `RUN.layout.json` beside it.
+/// Where `agglo run --recording RUN.mcap` puts its layout: `RUN.layout.json` beside it.
 pub fn layout_path_for(recording: &Path) -> PathBuf {
     recording.with_extension("layout.json")
 }

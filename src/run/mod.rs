@@ -188,7 +188,7 @@ impl RunPlan {
     fn outputs(&self) -> Vec<(&'static str, PathBuf)> {
         let t = &self.tables;
         let mut out: Vec<(&'static str, PathBuf)> = [
-            ("--out (the recording)", &self.recording),
+            ("--recording", &self.recording),
             ("--summary", &self.summary),
             ("--final-state", &self.final_state),
             ("--series", &t.series),
@@ -202,7 +202,7 @@ impl RunPlan {
         out.extend(self.step_tables.iter().map(|(t, p)| (t.flag, p.clone())));
         if let Some(mcap) = &self.recording {
             out.push((
-                "the recording's layout (beside --out)",
+                "the recording's layout (beside --recording)",
                 crate::record::layout::layout_path_for(mcap),
             ));
         }
@@ -216,8 +216,8 @@ impl RunPlan {
         out
     }
 
-    /// No two outputs share a file (`--out x.mcap --summary x.mcap` left one of them
-    /// lost and exited 0; `--out run.restart` with `output.restart` wrote the recording,
+    /// No two outputs share a file (`--recording x.mcap --summary x.mcap` left one of
+    /// them lost and exited 0; `--recording run.restart` with `output.restart` wrote the recording,
     /// then replaced it by the restart file at the first checkpoint), and the final state
     /// is CSV (`--final-state x.parquet` wrote CSV under a Parquet name).
     pub fn check_paths(&self) -> anyhow::Result<()> {

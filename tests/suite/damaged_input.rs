@@ -710,8 +710,9 @@ fn a_body_of_1e5_primaries_fragments_in_seconds() {
     assert!(closest >= 2e-6, "{closest:e}");
 }
 
-/// `--out run.restart` with `output.restart`: the restart file (beside the recording,
-/// RUN.restart) was the recording itself, overwritten at the first checkpoint, exit 0.
+/// `--recording run.restart` with `output.restart`: the restart file (beside the
+/// recording, RUN.restart) was the recording itself, overwritten at the first
+/// checkpoint, exit 0.
 #[test]
 fn a_recording_on_the_restart_files_path_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -720,13 +721,19 @@ fn a_recording_on_the_restart_files_path_is_refused() {
         json!({ "output": { "restart": { "every": 0.0004 } } }),
     );
     let out = agglo_within(
-        &["run", scene.to_str().unwrap(), "-q", "--out", "run.restart"],
+        &[
+            "run",
+            scene.to_str().unwrap(),
+            "-q",
+            "--recording",
+            "run.restart",
+        ],
         dir.path(),
         LIMIT,
     );
     assert!(out.refused(), "{:?} {}", out.status, out.stderr);
     assert!(
-        out.stderr.contains("--out") && out.stderr.contains("restart file"),
+        out.stderr.contains("--recording") && out.stderr.contains("restart file"),
         "{}",
         out.stderr
     );
@@ -976,8 +983,8 @@ fn outputs_that_share_a_file_are_refused_naming_both() {
     let quick = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/two_body.json");
     for (args, words) in [
         (
-            vec!["--out", "x.mcap", "--summary", "x.mcap"],
-            vec!["--out (the recording)", "--summary", "x.mcap"],
+            vec!["--recording", "x.mcap", "--summary", "x.mcap"],
+            vec!["--recording and --summary", "x.mcap"],
         ),
         (
             vec!["--final-state", "y.csv", "--series", "y.csv"],
@@ -988,8 +995,9 @@ fn outputs_that_share_a_file_are_refused_naming_both() {
             vec!["layout", "--summary"],
         ),
         (
+            // `--out`, the recording's old name, is still accepted.
             vec!["--out", "run.restart", "--set", "output.restart.every=1e-4"],
-            vec!["--out (the recording)", "restart file"],
+            vec!["--recording and the restart file", "run.restart"],
         ),
         (
             vec!["--final-state", "f.parquet"],
