@@ -85,9 +85,9 @@ fn spread() {
         let (out, _) = advance_cell(&c, 0, 0, &input, None).expect("cell");
         let seconds = start.elapsed().as_secs_f64();
         let n: f64 = input.classes.iter().map(|k| k.number_density).sum();
-        let (rate, se) = (out.number_rate.mean / n, out.number_rate.se / n);
+        let (rate, se) = (out.total_number_rate.mean / n, out.total_number_rate.se / n);
         let impacts = out.impact_rate.mean * out.box_volume * dt;
-        let merged = -out.number_rate.mean * out.box_volume * dt;
+        let merged = -out.total_number_rate.mean * out.box_volume * dt;
         eprintln!(
             "P04 cell, N = 1000, Δt = {dt} s, 16 replicas in {seconds:.2} s ({impacts:.0} \
              impacts, {merged:.0} bodies fewer per box): growth rate (1/n) Σ dn_k/dt = \

@@ -204,11 +204,12 @@ pub struct CellOutput {
     pub bodies: Stat,
     pub classes: Vec<ClassOutput>,
     /// Source rate of the total number density [1/(m³ s)], the column
-    /// `total_number_rate` of [`Self::columns`] (the cell's growth: minus
-    /// the bodies merges removed, plus the pieces fragmentations made); its standard
-    /// error is over the replicas' totals (the classes' rates are correlated, so theirs
-    /// do not add up to it).
-    pub number_rate: Stat,
+    /// `total_number_rate` of [`Self::columns`] as in C and Python (the cell's growth:
+    /// minus the bodies merges removed, plus the pieces fragmentations made); its
+    /// standard error is over the replicas' totals (the classes' rates are correlated,
+    /// so theirs do not add up to it). Named `number_rate` until issue 40, which gave
+    /// every thing one name across Rust, C and Python (`number_rate` is a class's).
+    pub total_number_rate: Stat,
     /// Granular temperature of all bodies at the end [m²/s²]: the unbiased
     /// mass-weighted variance of a velocity component about each body's class mean,
     /// Σ_k Σm|v − ū_k|² / (3 Σ_k (M_k − Σm²/M_k)) (one-body classes add nothing to
@@ -328,7 +329,7 @@ impl CellOutput {
                 mean: f64::from(u8::from(c.ignored)),
                 se: 0.0,
             }),
-            scalar("total_number_rate", "1/(m^3 s)", self.number_rate),
+            scalar("total_number_rate", "1/(m^3 s)", self.total_number_rate),
             scalar("granular_temperature", "m^2/s^2", self.granular_temperature),
             Column {
                 name: "gas_momentum_rate",

@@ -93,9 +93,9 @@ mod tests {
         );
         // (4e9 − 16e6) / 1000 bodies fit.
         assert!(e.contains("at most 3.984e6 bodies"), "{e}");
-        // Two threads and four kept boxes: 2 × 1000 + 4 × 120 B per body, 2e6 bodies a
-        // box: about 5.0 GB against 4 GB.
-        let e = check_memory(3, 2e6, 2, 4, Some(4e9))
+        // Two threads and four kept boxes: 2 × 1000 + 4 × 120 B per body, 2.5 GB for
+        // 1e6 bodies, against 2 GB; without the kept boxes 2.0 GB fits in 4 GB.
+        let e = check_memory(3, 1e6, 2, 4, Some(2e9))
             .unwrap_err()
             .to_string();
         assert!(e.contains("2480 B per body"), "{e}");

@@ -288,7 +288,7 @@ pub fn combine(
         box_volume: volume,
         bodies: stat(replicas, |r| total(&r.start)),
         classes,
-        number_rate: count_rate(&|r| total(&r.end) - total(&r.start)),
+        total_number_rate: count_rate(&|r| total(&r.end) - total(&r.start)),
         granular_temperature: stat_where(
             replicas,
             |r| (0..r.end.count.len()).any(|k| r.end.count[k] >= 2),

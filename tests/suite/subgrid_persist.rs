@@ -222,7 +222,7 @@ fn direct_boxes_of_1e5_bodies_at_2_tau0() {
     let total: f64 = end.classes.iter().map(|k| k.number_density).sum::<f64>() / n0;
     eprintln!(
         "8 boxes of 1e5 bodies to 2 τ0: N/N0 = {total:.4} ± {:.4}, n1/n0 = {:.4} ± {:.4}",
-        out.number_rate.se * 2.0 * tau0 / n0,
+        out.total_number_rate.se * 2.0 * tau0 / n0,
         end.classes[0].number_density / n0,
         out.classes[0].number_rate.se * 2.0 * tau0 / n0
     );
@@ -253,7 +253,7 @@ fn persistent_chain_at_a_hundredth_of_tau0() {
     let end = apply_rates(&direct, &start, &out);
     let direct_n = Stat {
         mean: end.classes.iter().map(|k| k.number_density).sum::<f64>() / n0,
-        se: out.number_rate.se * 2.0 * tau0 / n0,
+        se: out.total_number_rate.se * 2.0 * tau0 / n0,
     };
     let direct_1 = Stat {
         mean: end.classes[0].number_density / n0,

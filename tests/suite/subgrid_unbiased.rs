@@ -543,7 +543,7 @@ fn the_fluctuation_energy_rate_s_se_is_calibrated_at_p04_s_cell() {
 #[ignore = "a measurement for docs/coupling.md (minutes)"]
 fn se_calibration_over_400_identical_cells() {
     let figures: [Figure; 7] = [
-        ("total number rate", |o| o.number_rate),
+        ("total number rate", |o| o.total_number_rate),
         ("number rate, class 0", |o| o.classes[0].number_rate),
         ("number rate, class 1", |o| o.classes[1].number_rate),
         ("impact rate", |o| o.impact_rate),
