@@ -566,17 +566,30 @@ pub(crate) fn box_scene(
 /// Random sequential addition in the periodic cube [−D, D)³ over a uniform grid of
 /// cells at least one largest diameter wide, so an overlapping pair is always in
 /// neighbouring cells. Most attempts in a dense box fail (P04's volume fraction 0.26:
-/// about ten per body), so a failing attempt is made cheap: the own cell is looked at
-/// first, then the faces, edges and corners, and the periodic image of a neighbour
-/// cell is a fixed shift, not a rounding per pair.
+/// about eleven per body), so a failing attempt is made cheap: the own cell is looked
+/// at first, then the seven of the octant p lies in (the neighbours on the sides of
+/// the cell p is nearer to), then the rest; a cell off the boundary reaches its
+/// neighbours by fixed index steps, and the periodic image of a neighbour across the
+/// boundary is a fixed shift worked out once per attempt, not a rounding per pair.
+/// Whether a position is free does not depend on the order the cells are looked at,
+/// so the bodies placed are the same bit for bit as with any other order. Against
+/// the layout before, which looked at the 27 cells in a fixed order with a remainder
+/// per axis and cell and a call to floor per axis, placing P04's boxes takes 0.72 of
+/// the instructions (callgrind, 16 lifts, dev profile: 147 → 106 M; the grid alone
+/// at -O: 0.59).
 pub(crate) struct PlacementGrid {
     side: f64,
     cells: usize,
     /// Bodies [x, y, z, radius] per cell.
     members: Vec<Vec<[f64; 4]>>,
-    /// The 27 neighbour offsets, nearest first (or, with fewer than 3 cells per side,
-    /// every cell once).
-    offsets: Vec<[isize; 3]>,
+    /// With 3 or more cells per side: the 27 neighbour cells, per axis 0 (the own
+    /// cell's row), 1 (the neighbour on the side p is nearer to) or 2 (the other),
+    /// the octant's 8 first. With fewer: every cell once, by its coordinates.
+    near_first: Vec<[usize; 3]>,
+    /// For an own cell off the boundary, the same 27 cells as index steps from it,
+    /// for each octant p may lie in (bit x set: p in the upper half of the cell along
+    /// axis x).
+    steps: [Vec<isize>; 8],
     attempts_left: u64,
 }
 
@@ -587,53 +600,79 @@ impl PlacementGrid {
         let by_size = (side / min_cell).floor().max(1.0);
         let by_count = (8.0 * bodies as f64).cbrt().floor().max(3.0);
         let cells = by_size.min(by_count).max(1.0) as usize;
-        let offsets = if cells >= 3 {
-            let mut o: Vec<[isize; 3]> = (-1..=1)
-                .flat_map(|x| (-1..=1).flat_map(move |y| (-1..=1).map(move |z| [x, y, z])))
+        let near_first: Vec<[usize; 3]> = if cells >= 3 {
+            let mut o: Vec<[usize; 3]> = (0..3)
+                .flat_map(|x| (0..3).flat_map(move |y| (0..3).map(move |z| [x, y, z])))
                 .collect();
-            o.sort_by_key(|d| d.iter().map(|x| x * x).sum::<isize>());
+            // The octant's cells first (own, faces, edges, corner), then the faces,
+            // edges and corners beyond it.
+            o.sort_by_key(|d| (d.contains(&2), d.iter().filter(|&&x| x > 0).count()));
             o
         } else {
-            let n = cells as isize;
-            (0..n)
-                .flat_map(|x| (0..n).flat_map(move |y| (0..n).map(move |z| [x, y, z])))
+            (0..cells)
+                .flat_map(|x| (0..cells).flat_map(move |y| (0..cells).map(move |z| [x, y, z])))
                 .collect()
         };
+        let n = cells as isize;
+        let steps = std::array::from_fn(|octant| {
+            if cells < 3 {
+                return Vec::new();
+            }
+            near_first
+                .iter()
+                .map(|o| {
+                    let d = [0, 1, 2].map(|x| {
+                        let near = if octant >> x & 1 == 1 { 1 } else { -1 };
+                        [0, near, -near][o[x]]
+                    });
+                    (d[0] * n + d[1]) * n + d[2]
+                })
+                .collect()
+        });
         Self {
             side,
             cells,
             members: vec![Vec::new(); cells * cells * cells],
-            offsets,
+            near_first,
+            steps,
             attempts_left: 2000 * bodies as u64 + 10_000,
         }
     }
 
-    fn cell_of(&self, p: [f64; 3]) -> [usize; 3] {
-        p.map(|x| {
-            let u = (x / self.side + 0.5) * self.cells as f64;
-            (u.floor().max(0.0) as usize).min(self.cells - 1)
-        })
+    /// The cell of p, and where p lies in it along each axis, in cell widths.
+    fn locate(&self, p: [f64; 3]) -> ([usize; 3], [f64; 3]) {
+        let mut c = [0usize; 3];
+        let mut within = [0.0; 3];
+        for x in 0..3 {
+            let u = (p[x] / self.side + 0.5) * self.cells as f64;
+            // `as` truncates toward 0 and saturates: the floor for u ≥ 0, and 0 for a
+            // rounding below the cube's lower face (a call to floor was an eighth of
+            // the placement's instructions).
+            c[x] = (u as usize).min(self.cells - 1);
+            within[x] = u - c[x] as f64;
+        }
+        (c, within)
     }
 
     fn index(&self, c: [usize; 3]) -> usize {
         (c[0] * self.cells + c[1]) * self.cells + c[2]
     }
 
-    /// A free position for a body of radius `b`, or `None` when the attempts ran out.
     /// Mark a body of radius `b` at `p` (inside the cube) as present, unchecked: the
     /// bodies a kept box already holds, before new ones are placed among them.
     pub(crate) fn occupy(&mut self, p: [f64; 3], b: f64) {
-        let cell = self.index(self.cell_of(p));
+        let cell = self.index(self.locate(p).0);
         self.members[cell].push([p[0], p[1], p[2], b]);
     }
 
+    /// A free position for a body of radius `b`, or `None` when the attempts ran out.
     pub(crate) fn place(&mut self, b: f64, rng: &mut Stream) -> Option<[f64; 3]> {
         let half = 0.5 * self.side;
         while self.attempts_left > 0 {
             self.attempts_left -= 1;
             let p = [0, 1, 2].map(|_| -half + self.side * rng.uniform());
-            let c = self.cell_of(p);
-            if self.free(p, c, b) {
+            let (c, within) = self.locate(p);
+            if self.free(p, c, within, b) {
                 let cell = self.index(c);
                 self.members[cell].push([p[0], p[1], p[2], b]);
                 return Some(p);
@@ -642,13 +681,22 @@ impl PlacementGrid {
         None
     }
 
-    fn free(&self, p: [f64; 3], c: [usize; 3], b: f64) -> bool {
-        let n = self.cells as isize;
-        if self.cells < 3 {
+    /// True when a body of radius `b` at `p` (already shifted to the cell's side of
+    /// the boundary) overlaps one in `cell`.
+    fn overlaps(&self, cell: usize, p: [f64; 3], b: f64) -> bool {
+        self.members[cell].iter().any(|q| {
+            let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
+            let reach = b + q[3];
+            dx * dx + dy * dy + dz * dz < reach * reach
+        })
+    }
+
+    fn free(&self, p: [f64; 3], c: [usize; 3], within: [f64; 3], b: f64) -> bool {
+        let n = self.cells;
+        if n < 3 {
             // Few cells: every cell once, minimum images by rounding.
-            return self.offsets.iter().all(|o| {
-                let cell = self.index(o.map(|x| x as usize));
-                self.members[cell].iter().all(|q| {
+            return self.near_first.iter().all(|o| {
+                self.members[self.index(*o)].iter().all(|q| {
                     let mut d2 = 0.0;
                     for x in 0..3 {
                         let d = p[x] - q[x];
@@ -659,28 +707,95 @@ impl PlacementGrid {
                 })
             });
         }
-        for o in &self.offsets {
-            // The neighbour cell, and the shift that brings its bodies next to p when
-            // it lies across the periodic boundary.
-            let mut at = [0usize; 3];
-            let mut image = p;
-            for x in 0..3 {
-                let i = c[x] as isize + o[x];
-                if i < 0 {
-                    image[x] += self.side;
+        let octant = (0..3).fold(0, |o, x| o | (usize::from(within[x] >= 0.5) << x));
+        if c.iter().all(|&i| i > 0 && i < n - 1) {
+            // Off the boundary: no neighbour is a periodic image.
+            let own = self.index(c) as isize;
+            return !self.steps[octant]
+                .iter()
+                .any(|d| self.overlaps((own + d) as usize, p, b));
+        }
+        // Per axis, the row of the own cell, of the near and of the far neighbour,
+        // and p shifted by a side where that row lies across the periodic boundary.
+        let mut at = [[0usize; 3]; 3];
+        let mut image = [[0.0f64; 3]; 3];
+        let n = n as isize;
+        for x in 0..3 {
+            let near: isize = if octant >> x & 1 == 1 { 1 } else { -1 };
+            for (j, o) in [0, near, -near].into_iter().enumerate() {
+                let i = c[x] as isize + o;
+                (at[x][j], image[x][j]) = if i < 0 {
+                    ((i + n) as usize, p[x] + self.side)
                 } else if i >= n {
-                    image[x] -= self.side;
-                }
-                at[x] = i.rem_euclid(n) as usize;
-            }
-            for q in &self.members[self.index(at)] {
-                let (dx, dy, dz) = (image[0] - q[0], image[1] - q[1], image[2] - q[2]);
-                let reach = b + q[3];
-                if dx * dx + dy * dy + dz * dz < reach * reach {
-                    return false;
-                }
+                    ((i - n) as usize, p[x] - self.side)
+                } else {
+                    (i as usize, p[x])
+                };
             }
         }
-        true
+        !self.near_first.iter().any(|o| {
+            let cell = self.index([at[0][o[0]], at[1][o[1]], at[2][o[2]]]);
+            let image = [image[0][o[0]], image[1][o[1]], image[2][o[2]]];
+            self.overlaps(cell, image, b)
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Whether a body of radius `b` at `p` overlaps none of `placed` in the periodic
+    /// cube of side `side`, by every pair and minimum images (the grid's reference).
+    fn free_by_every_pair(placed: &[[f64; 4]], side: f64, p: [f64; 3], b: f64) -> bool {
+        placed.iter().all(|q| {
+            let d2: f64 = (0..3)
+                .map(|x| {
+                    let d = p[x] - q[x];
+                    let d = d - side * (d / side).round();
+                    d * d
+                })
+                .sum();
+            d2 >= (b + q[3]) * (b + q[3])
+        })
+    }
+
+    /// The grid's answer for every probe is the pair-by-pair answer, in a box of mixed
+    /// sizes filled to volume fraction ≈ 0.2 (cells off and on the periodic boundary,
+    /// every octant) and in one of fewer than three cells per side. The looking order
+    /// only changes how soon an overlap is found, never whether: this is what keeps
+    /// lifted boxes the same bit for bit whatever order the cells are looked at in.
+    #[test]
+    fn the_grid_finds_exactly_the_overlaps_every_pair_finds() {
+        let side = 0.02;
+        let b = (0.2 * side * side * side / (1000.0 * 4.0 / 3.0 * PI)).cbrt();
+        for (min_cell, radii) in [
+            // Largest 2b: 6b-wide cells, about 6 per side.
+            (4.0 * b, [2.0 * b, 1.3 * b, 0.8 * b]),
+            // Two cells per side: every cell looked at, minimum images by rounding.
+            (0.45 * side, [1.5 * b, b, 0.5 * b]),
+        ] {
+            let mut grid = PlacementGrid::new(side, min_cell, 1000);
+            let mut rng = Stream(7);
+            let mut placed = Vec::new();
+            for (i, &r) in radii.iter().enumerate() {
+                for _ in 0..[20, 200, 700][i] {
+                    let p = grid.place(r, &mut rng).expect("room at φ ≈ 0.2");
+                    placed.push([p[0], p[1], p[2], r]);
+                }
+            }
+            let (mut free, mut taken) = (0, 0);
+            for _ in 0..20_000 {
+                let p = [0, 1, 2].map(|_| side * (rng.uniform() - 0.5));
+                let r = radii[(3.0 * rng.uniform()) as usize];
+                let (c, within) = grid.locate(p);
+                let by_grid = grid.free(p, c, within, r);
+                assert_eq!(by_grid, free_by_every_pair(&placed, side, p, r), "{p:?}");
+                if by_grid { free += 1 } else { taken += 1 }
+            }
+            // Both answers occur often enough to have been compared (at φ ≈ 0.2
+            // most probes overlap; a few hundred are free).
+            assert!(free > 100 && taken > 100, "free {free}, taken {taken}");
+        }
     }
 }

@@ -55,7 +55,9 @@ impl Cells {
     fn coordinates(&self, p: [f64; 3]) -> [usize; 3] {
         p.map(|x| {
             let u = (x / self.side + 0.5) * self.per_side as f64;
-            (u.floor().max(0.0) as usize).min(self.per_side - 1)
+            // `as` truncates toward 0 and saturates: the floor for u ≥ 0, and 0 below
+            // (as `floor().max(0.0)`, without a call to floor).
+            (u as usize).min(self.per_side - 1)
         })
     }
 
@@ -86,6 +88,25 @@ impl Cells {
                 }
             }
         }
+    }
+}
+
+/// `x.round()` (half away from zero), without a call to round where |x| < 1.5, as a
+/// minimum image's d / side always is: at most one box side apart. The one difference,
+/// +0 for round's −0 on (−0.5, 0], changes d − side·r only for d = −0 (−0 for +0) and
+/// its square, which is all the sweeps use, never. With the
+/// cells' truncation for floor, the sweeps of 8 re-lifted P04 held states take 0.80 of
+/// the instructions they took with the calls (callgrind, dev profile: 759 → 608 M), and
+/// the boxes are the same bit for bit.
+fn nearest_whole(x: f64) -> f64 {
+    if x.abs() >= 1.5 || x.is_nan() {
+        x.round()
+    } else if x >= 0.5 {
+        1.0
+    } else if x <= -0.5 {
+        -1.0
+    } else {
+        0.0
     }
 }
 
@@ -130,7 +151,7 @@ pub(crate) fn equilibrate(
                     let mut d2 = 0.0;
                     for x in 0..3 {
                         let d = new[x] - q[x];
-                        let d = d - side * (d / side).round();
+                        let d = d - side * nearest_whole(d / side);
                         d2 += d * d;
                     }
                     let reach = radius[i] + radius[j];
@@ -153,4 +174,55 @@ pub(crate) fn equilibrate(
         }
     }
     accepted as f64 / tried as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The minimum image through `nearest_whole` is round's, its square bit for bit: on
+    /// the halves, the zeros, just inside and outside ±0.5 and ±1.5, far out, NaN, and
+    /// 10⁵ random differences of positions in a box.
+    #[test]
+    fn the_minimum_image_is_rounds_bit_for_bit() {
+        let side = 0.0123;
+        let image = |d: f64, r: f64| d - side * r;
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.5,
+            -1.5,
+            1.0,
+            -1.0,
+            7.3,
+            -7.3,
+            f64::NAN,
+        ];
+        for edge in [0.5f64, 1.5] {
+            for x in [edge.next_down(), edge.next_up()] {
+                xs.extend([x, -x]);
+            }
+        }
+        let mut rng = Stream(3);
+        xs.extend((0..100_000).map(|_| 2.0 * (rng.uniform() - rng.uniform())));
+        for x in xs {
+            let d = x * side;
+            let (ours, rounds) = (
+                image(d, nearest_whole(d / side)),
+                image(d, (d / side).round()),
+            );
+            // Equal as numbers (−0 and +0 for d = −0), the square bit for bit.
+            assert!(
+                ours == rounds || (ours.is_nan() && rounds.is_nan()),
+                "x = {x}: {ours} against {rounds}"
+            );
+            assert_eq!(
+                (ours * ours).to_bits(),
+                (rounds * rounds).to_bits(),
+                "x = {x}"
+            );
+        }
+    }
 }
