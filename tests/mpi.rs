@@ -346,17 +346,20 @@ fn a_failing_sample_is_reported_once_and_stops_every_rank() {
     assert!(start.elapsed() < Duration::from_secs(60));
 }
 
-/// `agglo::subgrid`'s batch of 256 cells (issue 32): sticky grains at volume fractions
-/// 0.01–0.05, 60 bodies per box (`AGGLO_SUBGRID_BODIES` to measure with larger boxes),
-/// one replica, Δt = 2e-4 s.
-fn subgrid_batch() -> (
+/// A coupling and its cells (id, input, kept state), as `advance_cells` takes them.
+type SubgridBatch = (
     agglo::subgrid::Coupling,
     Vec<(
         u64,
         agglo::subgrid::CellInput,
         Option<agglo::subgrid::CellState>,
     )>,
-) {
+);
+
+/// `agglo::subgrid`'s batch of 256 cells (issue 32): sticky grains at volume fractions
+/// 0.01–0.05, 60 bodies per box (`AGGLO_SUBGRID_BODIES` to measure with larger boxes),
+/// one replica, Δt = 2e-4 s.
+fn subgrid_batch() -> SubgridBatch {
     use agglo::subgrid::*;
     let base = agglo::scenario::Scenario::from_json(
         r#"{ "name": "cells", "seed": 3, "box": { "half_width": 0.01 },
@@ -425,14 +428,7 @@ fn subgrid_bytes(
 /// the first lifts every box; before the second, each cell's input is what
 /// `apply_rates` left, with every other cell stirred (10 % of it replaced by its first
 /// input), so that half the boxes resume their snapshots and half are adjusted.
-fn persistent_batch() -> (
-    agglo::subgrid::Coupling,
-    Vec<(
-        u64,
-        agglo::subgrid::CellInput,
-        Option<agglo::subgrid::CellState>,
-    )>,
-) {
+fn persistent_batch() -> SubgridBatch {
     let (mut c, cells) = subgrid_batch();
     c.persist = true;
     c.replicas = 3;
