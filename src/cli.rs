@@ -12,7 +12,8 @@ use clap::Parser;
 
 mod inverse;
 mod kernel;
-mod live;
+#[doc(hidden)]
+pub mod live;
 mod ranks;
 
 use agglo::prelude::*;

@@ -25,8 +25,10 @@
 //! ```
 
 mod accumulator;
-mod estimate;
-mod grid;
+#[doc(hidden)]
+pub mod estimate;
+#[doc(hidden)]
+pub mod grid;
 mod observer;
 pub mod write;
 

@@ -6,9 +6,11 @@
 //! with its unit: [`schema`], docs/outputs.md.
 
 pub mod collisions;
-mod column;
+#[doc(hidden)]
+pub mod column;
 pub mod offload;
-mod parquet_sink;
+#[doc(hidden)]
+pub mod parquet_sink;
 pub mod run_tables;
 /// The old name of [`run_tables`] ("run" named five things: issue 40).
 #[deprecated(note = "renamed agglo::output::run_tables")]

@@ -577,7 +577,8 @@ pub(crate) fn box_scene(
 /// per axis and cell and a call to floor per axis, placing P04's boxes takes 0.72 of
 /// the instructions (callgrind, 16 lifts, dev profile: 147 → 106 M; the grid alone
 /// at -O: 0.59).
-pub(crate) struct PlacementGrid {
+#[doc(hidden)]
+pub struct PlacementGrid {
     side: f64,
     cells: usize,
     /// Bodies [x, y, z, radius] per cell.
@@ -594,7 +595,7 @@ pub(crate) struct PlacementGrid {
 }
 
 impl PlacementGrid {
-    pub(crate) fn new(side: f64, min_cell: f64, bodies: usize) -> Self {
+    pub fn new(side: f64, min_cell: f64, bodies: usize) -> Self {
         // At most ~8 cells per body (a dilute box would otherwise allocate a huge
         // grid); wider cells stay correct, only slower.
         let by_size = (side / min_cell).floor().max(1.0);
@@ -640,7 +641,7 @@ impl PlacementGrid {
     }
 
     /// The cell of p, and where p lies in it along each axis, in cell widths.
-    fn locate(&self, p: [f64; 3]) -> ([usize; 3], [f64; 3]) {
+    pub fn locate(&self, p: [f64; 3]) -> ([usize; 3], [f64; 3]) {
         let mut c = [0usize; 3];
         let mut within = [0.0; 3];
         for x in 0..3 {
@@ -666,7 +667,7 @@ impl PlacementGrid {
     }
 
     /// A free position for a body of radius `b`, or `None` when the attempts ran out.
-    pub(crate) fn place(&mut self, b: f64, rng: &mut Stream) -> Option<[f64; 3]> {
+    pub fn place(&mut self, b: f64, rng: &mut Stream) -> Option<[f64; 3]> {
         let half = 0.5 * self.side;
         while self.attempts_left > 0 {
             self.attempts_left -= 1;
@@ -691,7 +692,7 @@ impl PlacementGrid {
         })
     }
 
-    fn free(&self, p: [f64; 3], c: [usize; 3], within: [f64; 3], b: f64) -> bool {
+    pub fn free(&self, p: [f64; 3], c: [usize; 3], within: [f64; 3], b: f64) -> bool {
         let n = self.cells;
         if n < 3 {
             // Few cells: every cell once, minimum images by rounding.
@@ -738,64 +739,5 @@ impl PlacementGrid {
             let image = [image[0][o[0]], image[1][o[1]], image[2][o[2]]];
             self.overlaps(cell, image, b)
         })
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Whether a body of radius `b` at `p` overlaps none of `placed` in the periodic
-    /// cube of side `side`, by every pair and minimum images (the grid's reference).
-    fn free_by_every_pair(placed: &[[f64; 4]], side: f64, p: [f64; 3], b: f64) -> bool {
-        placed.iter().all(|q| {
-            let d2: f64 = (0..3)
-                .map(|x| {
-                    let d = p[x] - q[x];
-                    let d = d - side * (d / side).round();
-                    d * d
-                })
-                .sum();
-            d2 >= (b + q[3]) * (b + q[3])
-        })
-    }
-
-    /// The grid's answer for every probe is the pair-by-pair answer, in a box of mixed
-    /// sizes filled to volume fraction ≈ 0.2 (cells off and on the periodic boundary,
-    /// every octant) and in one of fewer than three cells per side. The looking order
-    /// only changes how soon an overlap is found, never whether: this is what keeps
-    /// lifted boxes the same bit for bit whatever order the cells are looked at in.
-    #[test]
-    fn the_grid_finds_exactly_the_overlaps_every_pair_finds() {
-        let side = 0.02;
-        let b = (0.2 * side * side * side / (1000.0 * 4.0 / 3.0 * PI)).cbrt();
-        for (min_cell, radii) in [
-            // Largest 2b: 6b-wide cells, about 6 per side.
-            (4.0 * b, [2.0 * b, 1.3 * b, 0.8 * b]),
-            // Two cells per side: every cell looked at, minimum images by rounding.
-            (0.45 * side, [1.5 * b, b, 0.5 * b]),
-        ] {
-            let mut grid = PlacementGrid::new(side, min_cell, 1000);
-            let mut rng = Stream(7);
-            let mut placed = Vec::new();
-            for (i, &r) in radii.iter().enumerate() {
-                for _ in 0..[20, 200, 700][i] {
-                    let p = grid.place(r, &mut rng).expect("room at φ ≈ 0.2");
-                    placed.push([p[0], p[1], p[2], r]);
-                }
-            }
-            let (mut free, mut taken) = (0, 0);
-            for _ in 0..20_000 {
-                let p = [0, 1, 2].map(|_| side * (rng.uniform() - 0.5));
-                let r = radii[(3.0 * rng.uniform()) as usize];
-                let (c, within) = grid.locate(p);
-                let by_grid = grid.free(p, c, within, r);
-                assert_eq!(by_grid, free_by_every_pair(&placed, side, p, r), "{p:?}");
-                if by_grid { free += 1 } else { taken += 1 }
-            }
-            // Both answers occur often enough to have been compared (at φ ≈ 0.2
-            // most probes overlap; a few hundred are free).
-            assert!(free > 100 && taken > 100, "free {free}, taken {taken}");
-        }
     }
 }

@@ -52,12 +52,16 @@ mod cell;
 mod config;
 mod error;
 mod exchange;
-mod lift;
-mod memory;
+#[doc(hidden)]
+pub mod lift;
+#[doc(hidden)]
+pub mod memory;
 pub mod profile;
 mod restrict;
-mod stream;
-mod structure;
+#[doc(hidden)]
+pub mod stream;
+#[doc(hidden)]
+pub mod structure;
 
 pub use adjust::apply_rates;
 #[cfg(feature = "mpi")]

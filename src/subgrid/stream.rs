@@ -8,7 +8,8 @@ use std::f64::consts::PI;
 use crate::inverse::ensemble::splitmix64;
 
 /// A generator of its own: splitmix64 over a counter (as the kernel's samples).
-pub(crate) struct Stream(pub(crate) u64);
+#[doc(hidden)]
+pub struct Stream(pub u64);
 
 impl Stream {
     fn next_u64(&mut self) -> u64 {
@@ -16,7 +17,7 @@ impl Stream {
         splitmix64(self.0)
     }
     /// Uniform in [0, 1).
-    pub(crate) fn uniform(&mut self) -> f64 {
+    pub fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
     /// Standard normal (Box–Muller, one value per two uniforms).

@@ -25,6 +25,7 @@ mod fuzz;
 mod fuzz_doors;
 mod hooks;
 mod initial_data;
+mod internals;
 mod inverse;
 mod kernel;
 mod kernel_harden;
