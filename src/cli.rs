@@ -276,7 +276,7 @@ fn run_plan(args: &RunArgs) -> anyhow::Result<RunPlan> {
             // The recording's own output paths would overwrite files (even the recording).
             s.output.summary = None;
             s.output.final_state = None;
-            s.output.mcap = None;
+            s.output.recording.path = None;
             // Its checkpoints are part of the run; its restart file is not this one's.
             if let Some(restart) = s.output.restart.as_mut() {
                 restart.path = None;
@@ -288,7 +288,7 @@ fn run_plan(args: &RunArgs) -> anyhow::Result<RunPlan> {
             // The stopped run's outputs would be overwritten by this continuation's.
             s.output.summary = None;
             s.output.final_state = None;
-            s.output.mcap = None;
+            s.output.recording.path = None;
             s.output.series = None;
             s.output.sizes = None;
             s.output.snapshots = None;

@@ -185,7 +185,7 @@ pub struct RunArgs {
     /// ignored (pass --recording / --final-state / --summary).
     #[arg(long, value_name = "RECORDING")]
     pub from: Option<PathBuf>,
-    /// Record the run to this MCAP file for Foxglove (overrides `output.mcap`); a
+    /// Record the run to this MCAP file for Foxglove (overrides `output.recording.path`); a
     /// Foxglove layout fitted to the box is written beside it (RUN.layout.json).
     /// `--out` is its old name, still accepted.
     #[arg(long, value_name = "FILE", visible_alias = "out")]

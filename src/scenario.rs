@@ -136,6 +136,7 @@ impl Scenario {
         de.end()
             .map_err(|e| malformed(format!("{what} has more after the scenario's object: {e}")))?;
         let mut scenario = scenario;
+        scenario.take_old_names()?;
         scenario.load_cloud_file()?;
         crate::plugins::registry::canonical_sections(&mut scenario.plugins);
         scenario.validate()?;
@@ -149,10 +150,29 @@ impl Scenario {
                 path: e.path().to_string(),
                 message: e.inner().to_string(),
             })?;
+        scenario.take_old_names()?;
         scenario.load_cloud_file()?;
         crate::plugins::registry::canonical_sections(&mut scenario.plugins);
         scenario.validate()?;
         Ok(scenario)
+    }
+
+    /// Move fields given by a deprecated name to their current one: `output.mcap` is
+    /// `output.recording.path` (issue 40: the recording has one name, as `--recording`
+    /// and Python's `recording=`). Both at once is refused, naming both.
+    pub fn take_old_names(&mut self) -> Result<(), ScenarioError> {
+        if let Some(path) = self.output.mcap.take() {
+            if self.output.recording.path.is_some() {
+                return Err(ScenarioError::Invalid(vec![ValidationIssue {
+                    path: "output.mcap".into(),
+                    message: "output.mcap is the old name of output.recording.path: give \
+                              only output.recording.path"
+                        .into(),
+                }]));
+            }
+            self.output.recording.path = Some(path);
+        }
+        Ok(())
     }
 
     /// Read `cloud.from_file` into `cloud.bodies` (then the field is cleared: the

@@ -123,7 +123,8 @@ pub struct Output {
     /// Write the final state CSV here (same as `--final-state`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub final_state: Option<String>,
-    /// Record the run to this MCAP file (same as `--recording`).
+    /// Deprecated: the old name of `output.recording.path`, where a scenario's loading
+    /// moves it (so a scenario as recordings embed it never holds it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mcap: Option<String>,
     /// Write the time series here (same as `--series`; Parquet if it ends in `.parquet`).

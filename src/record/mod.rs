@@ -173,10 +173,14 @@ impl ColourScale {
     }
 }
 
-/// How often and how a recording samples the run.
+/// The recording: where it goes, how often and how it samples the run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Recording {
+    /// Record the run to this MCAP file (same as `--recording`; Python's `recording=`).
+    /// Formerly `output.mcap`, which is still read into this field.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path: Option<String>,
     /// Record every k-th step (0 = use `interval` only).
     #[serde(default)]
     pub every_steps: u64,
@@ -195,6 +199,7 @@ fn default_playback() -> f64 {
 impl Default for Recording {
     fn default() -> Self {
         Self {
+            path: None,
             every_steps: 0,
             interval: None,
             playback_seconds: default_playback(),

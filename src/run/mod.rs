@@ -114,7 +114,7 @@ impl RunPlan {
         Ok(Self {
             summary: path(&output.summary),
             final_state: path(&output.final_state),
-            recording: path(&output.mcap),
+            recording: path(&output.recording.path),
             tables,
             one_of_many: false,
             ..Self::unwritten(scenario)

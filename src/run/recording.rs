@@ -1,4 +1,4 @@
-//! The recording as an output of a run (`--recording`, `output.mcap`, Python's `recording=`): the [`Recorder`]
+//! The recording as an output of a run (`--recording`, `output.recording.path`, Python's `recording=`): the [`Recorder`]
 //! (src/record/) fed after every step and finished with the run's outcome.
 
 use crate::observer::{Ending, Observer, Written};

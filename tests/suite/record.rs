@@ -300,9 +300,8 @@ fn from_recording_reproduces_the_final_state_bit_for_bit() {
     // A scenario naming its own outputs: `--from` must not overwrite them.
     let scenario = scenario_file(dir.path(), "own_outputs", |v| {
         v["output"] = serde_json::json!({
-            "mcap": dir.path().join("a.mcap").to_str().unwrap(),
             "final_state": dir.path().join("a.csv").to_str().unwrap(),
-            "recording": { "every_steps": 5 }
+            "recording": { "path": dir.path().join("a.mcap").to_str().unwrap(), "every_steps": 5 }
         });
     });
     let out = agglo(&["run", s(&scenario), "--seed", "5", "-q"]);
@@ -612,4 +611,38 @@ fn default_snapshots_follow_the_crossings_and_the_docs_count_them() {
         "docs/foxglove.md says `paper2004_best` records {quoted} snapshots: update it"
     );
     assert!(times.len() < 301);
+}
+
+/// `output.mcap`, the recording's old name in a scenario, still records (issue 40: one
+/// name for the recording, `output.recording.path` as `--recording` and `recording=`):
+/// it is read into `output.recording.path`, so the scenario the recording embeds holds
+/// only the new name; giving both is refused, naming the old one.
+#[test]
+fn the_old_output_mcap_is_read_as_the_recording_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let old = dir.path().join("old.mcap");
+    let scenario = scenario_file(dir.path(), "old_name", |v| {
+        v["output"] = serde_json::json!({ "mcap": old.to_str().unwrap() });
+    });
+    let out = agglo(&["run", s(&scenario), "-q"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let embedded = agglo::record::scenario_from_recording(&old).unwrap();
+    assert_eq!(embedded.output.recording.path.as_deref(), old.to_str());
+    assert_eq!(embedded.output.mcap, None);
+    assert!(!embedded.to_json().contains("\"mcap\""));
+
+    let text = std::fs::read_to_string(&scenario).unwrap();
+    let mut both: serde_json::Value = serde_json::from_str(&text).unwrap();
+    both["output"]["recording"] = serde_json::json!({ "path": "new.mcap" });
+    let error = agglo::scenario::Scenario::from_json(&both.to_string())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("output.mcap") && error.contains("output.recording.path"),
+        "{error}"
+    );
 }
