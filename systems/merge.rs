@@ -25,7 +25,7 @@ use bevy_ecs::prelude::*;
 use bevy_ecs::query::QueryData;
 
 use agglo_engine::core_only::SimBuilderCore;
-use agglo_engine::scene::Physics;
+use agglo_engine::scene::{MergeMode, Physics};
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 use agglo_engine::params::{RunBooks, SceneConstants};
@@ -186,7 +186,12 @@ impl SimPlugin for MergePlugin {
         "merge"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        if sim.resource::<Physics>().merging {
+        let physics = *sim.resource::<Physics>();
+        if physics.merge_mode == MergeMode::Rigid {
+            sim.leave_out(
+                "merging: physics.merge_mode = \"rigid\" joins aggregates in the impact stage",
+            );
+        } else if physics.merging {
             sim.add_core_systems(StepSystems::Merge, merge_bonded);
         } else {
             sim.leave_out("merging off: physics.merging = false");
