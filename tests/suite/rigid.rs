@@ -322,6 +322,13 @@ fn ten_thousand_primaries_grow_to_a_mean_of_a_hundred_with_an_open_fractal_dimen
         (1.74..=1.94).contains(&d_f),
         "D_f = {d_f} over {used} aggregates, k_f = {k_f}"
     );
+    // What docs/model.md §6.1 quotes of this deterministic run, to its digits.
+    assert_eq!(summary.count, 59);
+    assert!((summary.mean_primaries - 169.5).abs() < 0.05);
+    let fractal = summary.fractal.expect("a fit");
+    assert!((fractal.dimension - 1.80).abs() < 0.005, "{fractal:?}");
+    assert!((fractal.dimension_se - 0.03).abs() < 0.005, "{fractal:?}");
+    assert!((fractal.prefactor - 1.59).abs() < 0.005, "{fractal:?}");
 }
 
 #[test]
@@ -329,7 +336,13 @@ fn ten_thousand_primaries_grow_to_a_mean_of_a_hundred_with_an_open_fractal_dimen
 fn a_hundred_thousand_primaries_grow_to_a_mean_of_a_hundred() {
     // Measured (dev profile, one thread, 39 s wall): 679 aggregates, mean k = 147,
     // D_f = 1.817 ± 0.010, k_f = 1.62 over the 626 with k ≥ 2.
-    let mut sim = Simulation::new(&cluster_cluster(100_000, 0.5, 1)).expect("builds");
+    // scenarios/bcca.json with 10× the primaries in a box 10^(1/3) wider (φ kept), as
+    // `agglo run scenarios/bcca.json --set cloud.count=100000 --set box.half_width=0.021544`.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/bcca.json");
+    let mut scene = Scenario::load(&path).expect("scenarios/bcca.json loads");
+    scene.cloud.count = 100_000;
+    scene.domain.half_width = 0.021544;
+    let mut sim = Simulation::new(&scene).expect("builds");
     sim.run().expect("runs");
     let summary = sim.summary().aggregates.expect("aggregates");
     assert!(summary.mean_primaries >= 100.0, "{summary:?}");
@@ -339,6 +352,15 @@ fn a_hundred_thousand_primaries_grow_to_a_mean_of_a_hundred() {
         (1.77..=1.87).contains(&d_f),
         "D_f = {d_f} over {used} aggregates, k_f = {k_f}"
     );
+    // What docs/model.md §6.1 quotes of this deterministic run, to its digits.
+    assert_eq!(summary.count, 679);
+    assert!((summary.mean_primaries - 147.0).abs() < 0.5);
+    assert_eq!(used, 626);
+    assert!((d_f - 1.817).abs() < 0.0005 && (k_f - 1.62).abs() < 0.005);
+    let (d_5, _, _) = fit(&sim, 5);
+    assert!((d_5 - 1.86).abs() < 0.005, "k ≥ 5: D_f = {d_5}");
+    let (d_100, _, _) = fit(&sim, 100);
+    assert!((d_100 - 1.69).abs() < 0.005, "k ≥ 100: D_f = {d_100}");
 }
 
 #[test]
