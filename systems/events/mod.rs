@@ -184,6 +184,7 @@ fn core_from_world(
 }
 
 /// Stage `Contact`: this step's contacts from the calendar.
+#[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
 pub fn pop_due_contacts(
     mut core: ResMut<EventCore>,
     scene: SceneConstants,
