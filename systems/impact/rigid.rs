@@ -17,13 +17,16 @@
 //! other (their offsets moved into its frame through the contact's separation, the
 //! periodic image met), and its entity is despawned. The momentum is conserved exactly
 //! (the law's common velocity), the kinetic energy lost is the law's dissipation, booked
-//! as for spheres. A bounce changes the two aggregates' velocities only.
+//! as for spheres. A bounce changes the two aggregates' velocities; a bouncing pair
+//! found overlapping (by rounding) is pushed apart as spheres are, each aggregate whole.
+//! An aggregate of one primary is thus exactly a sphere of the coalesce mode.
 //!
 //! Every primary of both aggregates is brought to now and filed as touched, so the event
 //! core re-predicts them: O(k_A + k_B) per contact.
 
 use bevy_ecs::prelude::*;
 use bevy_ecs::query::QueryData;
+use glam::DVec3;
 
 use agglo_engine::aggregates::{Aggregate, MemberOf, Members, Offset};
 use agglo_engine::bodies::{Clockwork, LazyBody, bring_to};
@@ -35,7 +38,9 @@ use agglo_engine::params::{RunBooks, SceneConstants};
 use agglo_engine::resources::{ContactList, ImpactRecords};
 use agglo_engine::totals::Totals;
 
-use super::{Apply, CollapseGuard, ImpactModel, PairBody, pair_model, solve};
+use agglo_engine::resources::Contact;
+
+use super::{Apply, CollapseGuard, ImpactModel, PairBody, Separation, pair_model, solve};
 
 /// What a rigid impact reads and writes of each primary of the two aggregates.
 #[derive(QueryData)]
@@ -155,13 +160,45 @@ pub fn resolve_rigid_contacts(
         let s = contact.separation;
         let keep_a = ga.id < gb.id;
         let (shift_a, shift_b) = match (out.bonded, keep_a) {
-            (false, _) => (glam::DVec3::ZERO, glam::DVec3::ZERO),
-            (true, true) => (glam::DVec3::ZERO, off_a + s - off_b),
-            (true, false) => (off_b - s - off_a, glam::DVec3::ZERO),
+            (false, _) => (DVec3::ZERO, DVec3::ZERO),
+            (true, true) => (DVec3::ZERO, off_a + s - off_b),
+            (true, false) => (off_b - s - off_a, DVec3::ZERO),
         };
-        for (members, velocity, rise, shift) in [
-            (members_a, out.velocity_i, rise_a, shift_a),
-            (members_b, out.velocity_j, rise_b, shift_b),
+        // A bouncing pair found overlapping (by rounding, on the event core) is pushed
+        // apart to touching as spheres are (§5.3), each aggregate moving whole.
+        let (push_a, push_b) = if out.bonded {
+            (DVec3::ZERO, DVec3::ZERO)
+        } else {
+            push_apart(
+                settings.separation,
+                contact,
+                (ra, rb),
+                (ga.mass, gb.mass),
+                (out.velocity_i, out.velocity_j),
+            )
+        };
+        if push_a != DVec3::ZERO || push_b != DVec3::ZERO {
+            apply.clock.bodies_pushed = true;
+        }
+        for (members, touching, velocity, temperature, rise, shift, push) in [
+            (
+                members_a,
+                contact.a,
+                out.velocity_i,
+                out.temperature_i,
+                rise_a,
+                shift_a,
+                push_a,
+            ),
+            (
+                members_b,
+                contact.b,
+                out.velocity_j,
+                out.temperature_j,
+                rise_b,
+                shift_b,
+                push_b,
+            ),
         ] {
             for &e in members.entities() {
                 let Ok(mut p) = primaries.get_mut(e) else {
@@ -181,9 +218,18 @@ pub fn resolve_rigid_contacts(
                 );
                 bring_to(now, &clockwork, lazy).enter(&mut *apply.ledger);
                 p.velocity.0 = velocity;
-                p.temperature.0 += rise;
+                // The touching primary takes the law's temperature, the others its rise
+                // (so an aggregate of one is exactly a sphere of the coalesce mode).
+                p.temperature.0 = if e == touching {
+                    temperature
+                } else {
+                    p.temperature.0 + rise
+                };
                 p.hardness.0 = material.hardness(p.temperature.0);
                 p.offset.0 += shift;
+                if push != DVec3::ZERO {
+                    p.position.0 = geometry.wrap(p.position.0 + push);
+                }
             }
         }
         ga.velocity = out.velocity_i;
@@ -207,9 +253,43 @@ pub fn resolve_rigid_contacts(
     changed.0 = true;
 }
 
+/// How far each aggregate of a bouncing pair moves so that its touching primaries
+/// overlap no more [m]: the spheres' rule (§5.3, `impact.separation`) with the
+/// aggregates' masses and outgoing velocities and the touching primaries' radii; zero
+/// when they do not overlap.
+fn push_apart(
+    separation: Separation,
+    contact: &Contact,
+    (ra, rb): (f64, f64),
+    (ma, mb): (f64, f64),
+    (va, vb): (DVec3, DVec3),
+) -> (DVec3, DVec3) {
+    let distance = contact.separation.length();
+    let overlap = ra + rb - distance;
+    if overlap <= 0.0 {
+        return (DVec3::ZERO, DVec3::ZERO);
+    }
+    match separation {
+        Separation::Normal => {
+            let total = ma + mb;
+            (
+                -(contact.normal * (overlap * mb / total)),
+                contact.normal * (overlap * ma / total),
+            )
+        }
+        Separation::Velocities => {
+            let shortfall = 1.0 - distance / (ra + rb);
+            (
+                va.normalize_or_zero() * (ra * shortfall),
+                vb.normalize_or_zero() * (rb * shortfall),
+            )
+        }
+    }
+}
+
 /// One aggregate as a restart snapshot keeps it: id, mass [kg], velocity [m/s], and its
 /// primaries in the order they joined, each by stable id with its offset [m].
-type SavedAggregate = (u64, f64, glam::DVec3, Vec<(u64, glam::DVec3)>);
+type SavedAggregate = (u64, f64, DVec3, Vec<(u64, DVec3)>);
 
 /// The restart part of rigid scenes (engine/restart.rs): every aggregate with its
 /// primaries, so that a resumed run continues bit for bit (the members' order is kept:

@@ -523,3 +523,27 @@ fn a_bounce_between_aggregates_exchanges_the_impulse_of_their_masses() {
     assert!((bodies[0].velocity.x - dimer_after).abs() <= 1e-12 * u);
     assert!((bodies[2].velocity.x - monomer_after).abs() <= 1e-12 * u);
 }
+
+#[test]
+fn without_bonds_a_rigid_run_is_the_coalesce_run_bit_for_bit() {
+    // The peers' bounce cloud (1000 hard grains, only bounces): every aggregate stays a
+    // single primary, and a single primary is exactly a sphere of the coalesce mode —
+    // the same law, velocities, temperatures and push-apart, to the bit.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("benches/peers/scenes/peer_bounce_1000.json");
+    let run = |mode: &str| {
+        let mut scene = Scenario::load(&path).expect("the peers' scene loads");
+        scene.time.end = 2e-3;
+        scene.physics.merge_mode = match mode {
+            "rigid" => agglo::scene::MergeMode::Rigid,
+            _ => agglo::scene::MergeMode::Coalesce,
+        };
+        let mut sim = Simulation::new(&scene).expect("builds");
+        sim.run().expect("runs");
+        (sim.bodies(), sim.counters(), sim.ledger())
+    };
+    let (coalesce, rigid) = (run("coalesce"), run("rigid"));
+    assert!(coalesce.1.bounces > 1000, "{:?}", coalesce.1);
+    assert_eq!(coalesce.1.bonds, 0);
+    assert!(coalesce == rigid, "{:?}\n{:?}", coalesce.1, rigid.1);
+}
