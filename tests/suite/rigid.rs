@@ -361,6 +361,21 @@ fn a_hundred_thousand_primaries_grow_to_a_mean_of_a_hundred() {
     assert!((d_5 - 1.86).abs() < 0.005, "k ≥ 5: D_f = {d_5}");
     let (d_100, _, _) = fit(&sim, 100);
     assert!((d_100 - 1.69).abs() < 0.005, "k ≥ 100: D_f = {d_100}");
+    // The cost figures docs/model.md §6.1 quotes, to their digits, and the same cloud's
+    // in coalesce mode.
+    let near = |x: u64, quoted: f64| ((x as f64 - quoted) / quoted).abs() < 0.005;
+    let rigid = sim.core_stats().expect("event core");
+    assert!(near(rigid.crossings, 2.44e7) && near(rigid.predictions, 2.62e7));
+    assert!(near(rigid.pair_tests, 2.66e8), "{rigid:?}");
+    assert_eq!(sim.counters().bonds, 99_321);
+    let not_by_crossings = rigid.predictions - rigid.crossings;
+    assert!(near(not_by_crossings, 1.8e6) && (not_by_crossings - 100_000) / 99_321 == 17);
+    scene.physics.merge_mode = agglo::scene::MergeMode::Coalesce;
+    let mut coalesce = Simulation::new(&scene).expect("builds");
+    coalesce.run().expect("runs");
+    let stats = coalesce.core_stats().expect("event core");
+    assert!(near(stats.crossings, 1.06e7) && near(stats.predictions, 1.08e7));
+    assert!(near(stats.pair_tests, 1.17e7), "{stats:?}");
 }
 
 #[test]
