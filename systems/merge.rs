@@ -15,6 +15,9 @@
 //! merge and becomes heat of the merged body, tallied as impact dissipation so that
 //! the ledgers close. With one impact per body it is zero and not computed.
 //!
+//! Left out in rigid scenes (`physics.merge_mode = "rigid"`): there a bond joins two
+//! aggregates in the impact stage (`impact/rigid.rs`) and no body is merged away.
+//!
 //! Reads: [`ImpactRecords`]. Writes: the survivor's components, despawns the partner,
 //! [`SimClock::bodies_reshaped`], [`StepEvents`] (the partner's id); one [`MergeMessage`]
 //! per merge when an extension subscribed (engine/hooks.rs).

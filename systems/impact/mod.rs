@@ -21,6 +21,9 @@
 //! change outcomes, and [`apply_impact_outcomes`] applies them, recomputing a changed one
 //! from the law at the restitution chosen (so the ledgers stay right).
 //!
+//! In rigid scenes (`physics.merge_mode = "rigid"`, docs/model.md §6.1) the system is
+//! [`rigid::resolve_rigid_contacts`] instead: the same law between two aggregates.
+//!
 //! The solve itself is the plain function [`solve_pair`] in `engine/laws/impact.rs`, free
 //! of ECS types, so it can be tested against the closed form of docs/model.md §14 and
 //! benchmarked alone; this module is the system around it.
