@@ -188,31 +188,43 @@ pub struct CarriedColumns {
     pub rows: Vec<(u64, Vec<Option<f64>>)>,
 }
 
-/// Read the registered quantities of every body (empty when none is registered).
+/// Read the registered quantities of every body (empty when none is registered), and in
+/// a rigid scene (docs/model.md §6.1) each primary's aggregate id as the last column,
+/// `aggregate` (an id below 2⁵³, exact as f64).
 pub fn carried_columns(world: &World) -> CarriedColumns {
-    let Some(state) = world.get_resource::<CarriedState>() else {
+    let state = world.get_resource::<CarriedState>();
+    let rigid = world
+        .get_resource::<crate::aggregates::RigidAggregates>()
+        .is_some();
+    if state.is_none() && !rigid {
         return CarriedColumns::default();
-    };
+    }
     let Some(mut query) = world.try_query_filtered::<(Entity, &ParticleId), With<Particle>>()
     else {
         return CarriedColumns::default();
     };
+    let entries = state.map_or(&[][..], |s| &s.entries[..]);
+    let aggregate_of = |entity: Entity| {
+        let of = world.get::<crate::aggregates::MemberOf>(entity)?;
+        Some(world.get::<crate::aggregates::Aggregate>(of.0)?.id as f64)
+    };
     let mut rows: Vec<(u64, Vec<Option<f64>>)> = query
         .iter(world)
         .map(|(entity, id)| {
-            let values = state
-                .entries
-                .iter()
-                .map(|e| (e.get)(world, entity))
-                .collect();
+            let mut values: Vec<Option<f64>> =
+                entries.iter().map(|e| (e.get)(world, entity)).collect();
+            if rigid {
+                values.push(aggregate_of(entity));
+            }
             (id.0, values)
         })
         .collect();
     rows.sort_by_key(|r| r.0);
-    CarriedColumns {
-        names: state.entries.iter().map(|e| e.name.clone()).collect(),
-        rows,
+    let mut names: Vec<String> = entries.iter().map(|e| e.name.clone()).collect();
+    if rigid {
+        names.push("aggregate".to_string());
     }
+    CarriedColumns { names, rows }
 }
 
 /// Each registered quantity for the whole cloud: the bodies combined by its rule in

@@ -32,6 +32,7 @@
 
 #![warn(missing_docs)]
 
+pub mod aggregates;
 pub mod bodies;
 pub mod carried;
 pub mod cloud;

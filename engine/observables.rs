@@ -150,6 +150,10 @@ pub struct Summary {
     /// The event core's own counts (absent on the stepped core).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub events: Option<EventStats>,
+    /// The rigid aggregates: count, k, R_g and the fractal fit (absent unless
+    /// `physics.merge_mode = "rigid"`, docs/model.md §6.1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aggregates: Option<crate::aggregates::AggregateSummary>,
 }
 
 impl Simulation {
@@ -201,6 +205,10 @@ impl Summary {
             pipeline: sim.pipeline().clone(),
             wall_seconds: sim.wall_seconds(),
             events: sim.core_stats(),
+            aggregates: crate::aggregates::AggregateSummary::of(
+                &crate::aggregates::aggregate_shapes(sim.world()),
+                sim.primary().radius,
+            ),
         }
     }
 }

@@ -58,8 +58,8 @@ extern crate self as agglo;
 
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{
-    bodies, carried, cloud, components, core_only, error, hooks, laws, observables, params,
-    readable, resources, scene, schedule, setup, totals,
+    aggregates, bodies, carried, cloud, components, core_only, error, hooks, laws, observables,
+    params, readable, resources, scene, schedule, setup, totals,
 };
 /// The built-in physics plugins (the `agglo-systems` crate).
 pub use agglo_systems as systems;

@@ -292,6 +292,8 @@ impl Scenario {
                 self.diagnostics.issues(),
                 self.output.issues(&self.time),
                 self.field.issues(),
+                self.physics
+                    .rigid_issues(&self.time, &self.material, !self.field.is_none()),
             ]
             .concat(),
         };

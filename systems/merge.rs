@@ -15,6 +15,9 @@
 //! merge and becomes heat of the merged body, tallied as impact dissipation so that
 //! the ledgers close. With one impact per body it is zero and not computed.
 //!
+//! Left out in rigid scenes (`physics.merge_mode = "rigid"`): there a bond joins two
+//! aggregates in the impact stage (`impact/rigid.rs`) and no body is merged away.
+//!
 //! Reads: [`ImpactRecords`]. Writes: the survivor's components, despawns the partner,
 //! [`SimClock::bodies_reshaped`], [`StepEvents`] (the partner's id); one [`MergeMessage`]
 //! per merge when an extension subscribed (engine/hooks.rs).
@@ -25,7 +28,7 @@ use bevy_ecs::prelude::*;
 use bevy_ecs::query::QueryData;
 
 use agglo_engine::core_only::SimBuilderCore;
-use agglo_engine::scene::Physics;
+use agglo_engine::scene::{MergeMode, Physics};
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 use agglo_engine::params::{RunBooks, SceneConstants};
@@ -186,7 +189,12 @@ impl SimPlugin for MergePlugin {
         "merge"
     }
     fn build(&self, sim: &mut SimBuilder) {
-        if sim.resource::<Physics>().merging {
+        let physics = *sim.resource::<Physics>();
+        if physics.merge_mode == MergeMode::Rigid {
+            sim.leave_out(
+                "merging: physics.merge_mode = \"rigid\" joins aggregates in the impact stage",
+            );
+        } else if physics.merging {
             sim.add_core_systems(StepSystems::Merge, merge_bonded);
         } else {
             sim.leave_out("merging off: physics.merging = false");

@@ -221,6 +221,48 @@ pub const SUMMARY_KEYS: &[Key] = &[
         "-",
         "event core: Z-order renumberings of the slots",
     ),
+    key(
+        "aggregates.count",
+        "-",
+        "rigid scenes only (physics.merge_mode): aggregates, singletons included",
+    ),
+    key(
+        "aggregates.mean_primaries",
+        "-",
+        "rigid: mean primaries k per aggregate",
+    ),
+    key("aggregates.max_primaries", "-", "rigid: the largest k"),
+    key(
+        "aggregates.mean_radius_of_gyration",
+        "m",
+        "rigid: mass-weighted mean R_g of the primaries' centres",
+    ),
+    key(
+        "aggregates.fractal.dimension",
+        "-",
+        "rigid: D_f of N = k_f (R_g/a)^D_f fitted over the aggregates with k ≥ 2 (null: fewer than two)",
+    ),
+    key("aggregates.fractal.prefactor", "-", "rigid: the fit's k_f"),
+    key(
+        "aggregates.fractal.dimension_se",
+        "-",
+        "rigid: standard error of D_f from the fit's residuals",
+    ),
+    key(
+        "aggregates.fractal.aggregates",
+        "-",
+        "rigid: aggregates in the fit",
+    ),
+    key(
+        "aggregates.fractal.min_primaries",
+        "-",
+        "rigid: smallest k fitted",
+    ),
+    key(
+        "aggregates.fractal.primary_radius",
+        "m",
+        "rigid: the primary radius a = b0 of the fit",
+    ),
 ];
 
 /// The tables, each with the flag that writes it and its columns.
@@ -238,7 +280,7 @@ pub fn tables() -> Vec<(&'static str, &'static str, &'static [Column])> {
         ),
         (
             "--snapshots",
-            "one row per body per sample, sorted by t then id; then one column per quantity an extension carries (engine/carried.rs), named by it, NaN where a body has none",
+            "one row per body per sample, sorted by t then id; then one column per quantity an extension carries (engine/carried.rs), named by it, NaN where a body has none; in a rigid scene (physics.merge_mode) last `aggregate`, the primary's aggregate id",
             SNAPSHOT_COLUMNS,
         ),
         (
@@ -256,7 +298,7 @@ pub fn tables() -> Vec<(&'static str, &'static str, &'static [Column])> {
     .chain([
         (
             "--final-state",
-            "one row per body at the end, sorted by id (CSV only); then one column per quantity an extension carries, named by it, empty where a body has none",
+            "one row per body at the end, sorted by id (CSV only); then one column per quantity an extension carries, named by it, empty where a body has none; in a rigid scene (physics.merge_mode) last `aggregate`, the primary's aggregate id",
             &SNAPSHOT_COLUMNS[1..],
         ),
     ])

@@ -34,6 +34,7 @@ use glam::DVec3;
 
 use self::calendar::EventKind;
 use self::core::{EventCore, Trajectory, morton_key};
+use agglo_engine::aggregates::MemberOf;
 use agglo_engine::bodies::{Clockwork, LazyBody, bring_to};
 use agglo_engine::components::{
     Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
@@ -42,6 +43,7 @@ use agglo_engine::resources::{
     BoxGeometry, Contact, ContactList, Counters, ForceKicks, SimClock, StepEvents,
 };
 use agglo_engine::restart::Checkpoints;
+use agglo_engine::scene::MergeMode;
 use agglo_engine::totals::Totals;
 
 /// Events closer than this (relative to t) count as simultaneous.
@@ -182,6 +184,7 @@ fn core_from_world(
 }
 
 /// Stage `Contact`: this step's contacts from the calendar.
+#[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
 pub fn pop_due_contacts(
     mut core: ResMut<EventCore>,
     scene: SceneConstants,
@@ -189,7 +192,10 @@ pub fn pop_due_contacts(
     mut contacts: ResMut<ContactList>,
     books: RunBooks,
     mut candidates: Local<Vec<(u64, u64, u32, u32)>>,
-    mut taken: Local<Vec<u32>>,
+    mut taken: Local<Vec<u64>>,
+    // Rigid scenes (docs/model.md §6.1): each primary's aggregate, which takes at most
+    // one impact per step (never read in coalesce scenes).
+    aggregate_of: Query<&MemberOf>,
 ) {
     let SceneConstants {
         material,
@@ -253,12 +259,20 @@ pub fn pop_due_contacts(
     let clockwork = Clockwork::new(&geometry, &material, &options).with_field(field.as_deref());
     let heat_capacity = material.C;
     taken.clear();
+    let rigid = options.merge_mode == MergeMode::Rigid;
     for &(_, _, sa, sb) in candidates.iter() {
-        if taken.contains(&sa) || taken.contains(&sb) {
+        let (ea, eb) = (core.entity_of(sa), core.entity_of(sb));
+        // What may take one impact this step: a body, or in a rigid scene its aggregate.
+        let (ka, kb) = if rigid {
+            let of = |e: Entity| aggregate_of.get(e).map_or(e, |m| m.0).to_bits();
+            (of(ea), of(eb))
+        } else {
+            (u64::from(sa), u64::from(sb))
+        };
+        if taken.contains(&ka) || taken.contains(&kb) {
             counters.deferred_contacts += 1;
             continue;
         }
-        let (ea, eb) = (core.entity_of(sa), core.entity_of(sb));
         let Ok([mut a, mut b]) = bodies.get_many_mut([ea, eb]) else {
             continue;
         };
@@ -289,8 +303,8 @@ pub fn pop_due_contacts(
         if distance == 0.0 || relative.dot(normal) <= 0.0 {
             continue;
         }
-        taken.push(sa);
-        taken.push(sb);
+        taken.push(ka);
+        taken.push(kb);
         events.touch(ea, before_a);
         events.touch(eb, before_b);
         contacts.contacts.push(Contact {

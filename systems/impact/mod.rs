@@ -21,6 +21,9 @@
 //! change outcomes, and [`apply_impact_outcomes`] applies them, recomputing a changed one
 //! from the law at the restitution chosen (so the ledgers stay right).
 //!
+//! In rigid scenes (`physics.merge_mode = "rigid"`, docs/model.md §6.1) the system is
+//! [`rigid::resolve_rigid_contacts`] instead: the same law between two aggregates.
+//!
 //! The solve itself is the plain function [`solve_pair`] in `engine/laws/impact.rs`, free
 //! of ECS types, so it can be tested against the closed form of docs/model.md §14 and
 //! benchmarked alone; this module is the system around it.
@@ -33,8 +36,9 @@ use bevy_ecs::query::QueryData;
 use agglo_engine::core_only::SimBuilderCore;
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
+use agglo_engine::aggregates::spawn_singletons;
 use agglo_engine::params::{RunBooks, SceneConstants};
-use agglo_engine::scene::Material;
+use agglo_engine::scene::{Material, MergeMode, Physics};
 
 use agglo_engine::components::{
     Hardness, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
@@ -49,6 +53,7 @@ use agglo_engine::resources::{
 };
 // The law (pure numerics) lives in the engine's laws; this module is its system.
 pub use agglo_engine::laws::impact::*;
+pub mod rigid;
 mod settings;
 pub use settings::{ImpactModel, RestitutionLaw};
 
@@ -313,16 +318,6 @@ impl Apply<'_> {
             hardness: mut hb,
         } = b;
         let (material, geometry, settings) = (self.material, self.geometry, self.settings);
-        if let Some(messages) = self.messages.as_mut() {
-            messages.write(impact_message(
-                self.clock.time,
-                contact,
-                body_a,
-                body_b,
-                out,
-                &self.model,
-            ));
-        }
         va.0 = out.velocity_i;
         vb.0 = out.velocity_j;
         ta.0 = out.temperature_i;
@@ -354,6 +349,27 @@ impl Apply<'_> {
             }
         }
 
+        self.book(contact, (body_a, body_b), out);
+    }
+
+    /// Book one applied impact: the message for extensions, the counters, the energy
+    /// ledger and the impact record.
+    fn book(
+        &mut self,
+        contact: &Contact,
+        (body_a, body_b): (&PairBody, &PairBody),
+        out: &PairOutcome,
+    ) {
+        if let Some(messages) = self.messages.as_mut() {
+            messages.write(impact_message(
+                self.clock.time,
+                contact,
+                body_a,
+                body_b,
+                out,
+                &self.model,
+            ));
+        }
         let counters = &mut *self.counters;
         counters.impacts += 1;
         if out.bonded {
@@ -558,9 +574,16 @@ impl SimPlugin for ImpactPlugin {
     fn build(&self, sim: &mut SimBuilder) {
         // The scene's `impact` section, or the defaults when it gives none.
         sim.init_resource::<ImpactModel>()
-            .init_resource::<SolvedImpacts>()
-            .add_core_systems(StepSystems::Impact, resolve_impacts)
-            .set_impact_outcome_applier(add_outcome_applier);
+            .init_resource::<SolvedImpacts>();
+        if sim.resource::<Physics>().merge_mode == MergeMode::Rigid {
+            // Every body starts as an aggregate of one primary (docs/model.md §6.1).
+            spawn_singletons(sim.world_mut());
+            sim.add_core_systems(StepSystems::Impact, rigid::resolve_rigid_contacts)
+                .add_restart_part(rigid::restart_part());
+        } else {
+            sim.add_core_systems(StepSystems::Impact, resolve_impacts)
+                .set_impact_outcome_applier(add_outcome_applier);
+        }
         let settings = *sim.resource::<ImpactModel>();
         if settings.restitution.is_some() {
             // The TC model against inelastic collapse (docs/model.md §5.4).

@@ -38,6 +38,7 @@ mod properties;
 mod readings;
 mod record;
 mod restart;
+mod rigid;
 mod scenario_input;
 mod scenarios;
 mod self_contained;

@@ -401,6 +401,16 @@ fn every_summary_key_is_documented_and_every_documented_key_exists() {
         sim.run().unwrap();
         keys(&serde_json::to_value(sim.summary()).unwrap(), "", &mut seen);
     }
+    // A rigid scene's summary has `aggregates` (docs/model.md §6.1): sticky primaries.
+    let mut s = merging_cloud();
+    s.material.H0 = 1e-6;
+    s.material.gamma = None;
+    s.physics.merge_mode = agglo::scene::MergeMode::Rigid;
+    // Stopped while several aggregates of k ≥ 2 remain (the fit needs two).
+    s.time.end = 2e-4;
+    let mut sim = Simulation::new(&s).unwrap();
+    sim.run().unwrap();
+    keys(&serde_json::to_value(sim.summary()).unwrap(), "", &mut seen);
     for k in &seen {
         assert!(
             SUMMARY_KEYS.iter().any(|d| d.name == k),

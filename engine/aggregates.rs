@@ -1,0 +1,245 @@
+//! Rigid aggregates (`physics.merge_mode = "rigid"`, docs/model.md §6.1): primaries held
+//! at the points where they touched, flying together without rotation.
+//!
+//! An aggregate is an entity of its own that owns its primaries through the bevy_ecs
+//! relationship [`MemberOf`] → [`Members`]; it carries the aggregate's stable id, mass
+//! and velocity ([`Aggregate`]). The primaries stay bodies (`Particle`) with all their
+//! components: their own mass, radius, temperature and hardness, and the aggregate's
+//! velocity, the same f64 value for every member — so two primaries of one aggregate
+//! never approach, and the event core never predicts a contact between them.
+//!
+//! Each primary also carries its [`Offset`]: its centre relative to a point fixed in the
+//! aggregate, *unwrapped* (not reduced to the periodic box), set when it joined. Without
+//! rotation the offsets never change, so the shape of an aggregate — its radius of
+//! gyration — comes from the offsets alone, exact however the aggregate straddles the
+//! periodic boundary, while the primaries' positions stay wrapped one by one.
+//!
+//! The aggregate id is the smallest stable id of its primaries (a bond keeps the
+//! smaller of the two), so it is as stable as the bodies' ids.
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::components::{Mass, Particle, ParticleId, Velocity};
+
+/// A primary's aggregate (the relationship's source side).
+#[derive(Component, Debug, Clone, Copy, PartialEq, Eq)]
+#[relationship(relationship_target = Members)]
+pub struct MemberOf(pub Entity);
+
+/// An aggregate's primaries (the relationship's target side, kept by bevy_ecs).
+#[derive(Component, Debug, Default)]
+#[relationship_target(relationship = MemberOf)]
+pub struct Members(Vec<Entity>);
+
+impl Members {
+    /// The primaries' entities, in the order they joined.
+    pub fn entities(&self) -> &[Entity] {
+        &self.0
+    }
+}
+
+/// The aggregate itself.
+#[derive(Component, Debug, Clone, Copy, PartialEq)]
+pub struct Aggregate {
+    /// Stable id: the smallest stable id of its primaries.
+    pub id: u64,
+    /// Mass M = Σ m_k [kg].
+    pub mass: f64,
+    /// Velocity V [m/s], shared by every primary (no rotation).
+    pub velocity: DVec3,
+}
+
+/// A primary's centre relative to a point fixed in its aggregate, unwrapped [m].
+#[derive(Component, Debug, Clone, Copy, PartialEq, Default)]
+pub struct Offset(pub DVec3);
+
+/// Present when the scene's bonds make rigid aggregates (`physics.merge_mode = "rigid"`).
+#[derive(Resource, Debug, Clone, Copy, Default)]
+pub struct RigidAggregates;
+
+/// Make every body in the world an aggregate of one primary (at t = 0, rigid scenes).
+pub fn spawn_singletons(world: &mut World) {
+    let mut bodies: Vec<(Entity, u64, f64, DVec3)> = world
+        .query_filtered::<(Entity, &ParticleId, &Mass, &Velocity), With<Particle>>()
+        .iter(world)
+        .map(|(e, id, m, v)| (e, id.0, m.0, v.0))
+        .collect();
+    // Spawned in id order, so that entity numbers do not depend on the query's order.
+    bodies.sort_by_key(|b| b.1);
+    for (entity, id, mass, velocity) in bodies {
+        let aggregate = world.spawn(Aggregate { id, mass, velocity }).id();
+        world
+            .entity_mut(entity)
+            .insert((MemberOf(aggregate), Offset(DVec3::ZERO)));
+    }
+    world.insert_resource(RigidAggregates);
+}
+
+/// One aggregate's size and shape.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct AggregateShape {
+    /// The aggregate's stable id.
+    pub id: u64,
+    /// Number of primaries k.
+    pub primaries: usize,
+    /// Mass [kg].
+    pub mass: f64,
+    /// Radius of gyration of the primaries' centres, mass-weighted,
+    /// R_g² = Σ m_k |x_k − x_cm|² / M [m] (without the primaries' own extent; 0 for k = 1).
+    pub radius_of_gyration: f64,
+}
+
+/// The shape of an aggregate of the primaries `(mass [kg], offset [m])`.
+pub fn shape_of(id: u64, primaries: &[(f64, DVec3)]) -> AggregateShape {
+    let mass: f64 = primaries.iter().map(|p| p.0).sum();
+    let centre = primaries.iter().map(|p| p.0 * p.1).sum::<DVec3>() / mass;
+    // Two passes (centre first): no cancellation between Σ m x² and M x_cm².
+    let spread: f64 = primaries
+        .iter()
+        .map(|p| p.0 * (p.1 - centre).length_squared())
+        .sum();
+    AggregateShape {
+        id,
+        primaries: primaries.len(),
+        mass,
+        radius_of_gyration: (spread / mass).sqrt(),
+    }
+}
+
+/// Every aggregate's shape, sorted by id (empty when the scene is not rigid).
+pub fn aggregate_shapes(world: &World) -> Vec<AggregateShape> {
+    if world.get_resource::<RigidAggregates>().is_none() {
+        return Vec::new();
+    }
+    let Some(mut primaries) = world.try_query::<(&ParticleId, &Mass, &Offset, &MemberOf)>() else {
+        return Vec::new();
+    };
+    // (aggregate, primary id, mass, offset), sorted so that each aggregate's sums run in
+    // id order whatever order the query gives.
+    let mut rows: Vec<(Entity, u64, f64, DVec3)> = primaries
+        .iter(world)
+        .map(|(id, m, o, of)| (of.0, id.0, m.0, o.0))
+        .collect();
+    rows.sort_by_key(|r| (r.0, r.1));
+    let mut shapes = Vec::new();
+    let mut group: Vec<(f64, DVec3)> = Vec::new();
+    for (i, row) in rows.iter().enumerate() {
+        group.push((row.2, row.3));
+        if rows.get(i + 1).is_none_or(|next| next.0 != row.0) {
+            let id = world.get::<Aggregate>(row.0).map_or(row.1, |a| a.id);
+            shapes.push(shape_of(id, &group));
+            group.clear();
+        }
+    }
+    shapes.sort_by_key(|s| s.id);
+    shapes
+}
+
+/// The fractal law N = k_f (R_g / a)^D_f fitted over a population of aggregates.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct FractalFit {
+    /// Fractal dimension D_f: the slope of ln k against ln(R_g / a).
+    pub dimension: f64,
+    /// Prefactor k_f.
+    pub prefactor: f64,
+    /// Standard error of D_f from the fit's residuals (∞ for two aggregates).
+    pub dimension_se: f64,
+    /// Aggregates in the fit (those with k ≥ `min_primaries`).
+    pub aggregates: usize,
+    /// Smallest k fitted.
+    pub min_primaries: usize,
+    /// Primary radius a [m].
+    pub primary_radius: f64,
+}
+
+/// Least-squares fit of ln k = ln k_f + D_f ln(R_g / a) over the aggregates with at least
+/// `min_primaries` (≥ 2) primaries; None when fewer than two such aggregates of distinct
+/// R_g remain. Every aggregate weighs the same (the population, not the mass, is fitted).
+pub fn fractal_fit(
+    shapes: &[AggregateShape],
+    primary_radius: f64,
+    min_primaries: usize,
+) -> Option<FractalFit> {
+    let points: Vec<(f64, f64)> = shapes
+        .iter()
+        .filter(|s| s.primaries >= min_primaries.max(2) && s.radius_of_gyration > 0.0)
+        .map(|s| {
+            (
+                (s.radius_of_gyration / primary_radius).ln(),
+                (s.primaries as f64).ln(),
+            )
+        })
+        .collect();
+    let n = points.len();
+    if n < 2 {
+        return None;
+    }
+    let nf = n as f64;
+    let mx = points.iter().map(|p| p.0).sum::<f64>() / nf;
+    let my = points.iter().map(|p| p.1).sum::<f64>() / nf;
+    let sxx: f64 = points.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = points.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    if sxx <= 0.0 {
+        return None;
+    }
+    let slope = sxy / sxx;
+    let intercept = my - slope * mx;
+    let residual: f64 = points
+        .iter()
+        .map(|p| (p.1 - intercept - slope * p.0).powi(2))
+        .sum();
+    let dimension_se = if n > 2 {
+        (residual / (nf - 2.0) / sxx).sqrt()
+    } else {
+        f64::INFINITY
+    };
+    Some(FractalFit {
+        dimension: slope,
+        prefactor: intercept.exp(),
+        dimension_se,
+        aggregates: n,
+        min_primaries: min_primaries.max(2),
+        primary_radius,
+    })
+}
+
+/// What the summary says of a rigid run's aggregates.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct AggregateSummary {
+    /// Number of aggregates (singletons included).
+    pub count: usize,
+    /// Mean primaries per aggregate.
+    pub mean_primaries: f64,
+    /// Largest aggregate's k.
+    pub max_primaries: usize,
+    /// Mass-weighted mean radius of gyration [m].
+    pub mean_radius_of_gyration: f64,
+    /// N = k_f (R_g/a)^D_f over the aggregates with k ≥ 2, a = the primary radius b0
+    /// (None with fewer than two such aggregates).
+    pub fractal: Option<FractalFit>,
+}
+
+impl AggregateSummary {
+    /// The summary of `shapes`, primaries of radius `primary_radius` [m] (None if empty).
+    pub fn of(shapes: &[AggregateShape], primary_radius: f64) -> Option<Self> {
+        if shapes.is_empty() {
+            return None;
+        }
+        let total_mass: f64 = shapes.iter().map(|s| s.mass).sum();
+        let primaries: usize = shapes.iter().map(|s| s.primaries).sum();
+        Some(Self {
+            count: shapes.len(),
+            mean_primaries: primaries as f64 / shapes.len() as f64,
+            max_primaries: shapes.iter().map(|s| s.primaries).max().unwrap_or(0),
+            mean_radius_of_gyration: shapes
+                .iter()
+                .map(|s| s.mass * s.radius_of_gyration)
+                .sum::<f64>()
+                / total_mass,
+            fractal: fractal_fit(shapes, primary_radius, 2),
+        })
+    }
+}
