@@ -240,7 +240,7 @@ pub const SUMMARY_KEYS: &[Key] = &[
     key(
         "aggregates.fractal.dimension",
         "-",
-        "rigid: D_f of N = k_f (R_g/a)^D_f fitted over the aggregates with k ≥ 2 (null: fewer than two)",
+        "rigid: D_f of N = k_f (R_g/a)^D_f, 1 / the slope of ln(R_g/a) on ln k over the aggregates with k ≥ 5 (null: fewer than two)",
     ),
     key("aggregates.fractal.prefactor", "-", "rigid: the fit's k_f"),
     key(
