@@ -157,15 +157,20 @@ impl SimBuilder {
         // spans every index below it; 25 of them took 100 MB at N = 1e6). Low indices are
         // held for them while the bodies are spawned, then freed, and the allocator hands
         // freed indices out first, so every resource inserted later (here or by a
-        // plugin) gets one of them.
-        let held: Vec<_> = (0..RESOURCE_INDICES)
-            .map(|_| world.spawn_empty().id())
-            .collect();
-        world.spawn_batch(cloud.iter().map(|b| b.bundle()));
-        drop(cloud);
-        for entity in held.into_iter().rev() {
-            world.despawn(entity);
+        // plugin) gets one of them. Without a cloud (a resumed simulation, whose bodies
+        // are spawned after every resource) the resources get the low indices anyway:
+        // nothing is held (spawning and freeing the 256 indices was a fifth of building
+        // a resumed subgrid box, issue 37).
+        if !cloud.is_empty() {
+            let held: Vec<_> = (0..RESOURCE_INDICES)
+                .map(|_| world.spawn_empty().id())
+                .collect();
+            world.spawn_batch(cloud.iter().map(|b| b.bundle()));
+            for entity in held.into_iter().rev() {
+                world.despawn(entity);
+            }
         }
+        drop(cloud);
         world.insert_resource(material);
         world.insert_resource(primary);
         world.insert_resource(*scene.domain());

@@ -282,6 +282,10 @@ pub struct ListDispatcher<'a, T, O> {
     tasks: Vec<T>,
     next: usize,
     results: Vec<Option<O>>,
+    /// How many of `results` hold a result: `finished` is asked after every result,
+    /// and scanning the results for it made a batch O(n²) (issue 37: 2048 resumed
+    /// subgrid boxes spent 19 % of their run time there).
+    done: usize,
     /// Called with (index, &output) as each result arrives (on the coordinating thread).
     on_result: Option<ResultHook<'a, O>>,
 }
@@ -303,6 +307,7 @@ impl<'a, T, O> ListDispatcher<'a, T, O> {
             tasks,
             next: 0,
             results,
+            done: 0,
             on_result: None,
         }
     }
@@ -338,11 +343,13 @@ where
         if let Some(f) = &mut self.on_result {
             f(task.index, &output);
         }
-        self.results[task.index] = Some(output);
+        if self.results[task.index].replace(output).is_none() {
+            self.done += 1;
+        }
     }
 
     fn finished(&self) -> bool {
-        self.results.iter().all(Option::is_some)
+        self.done == self.results.len()
     }
 }
 

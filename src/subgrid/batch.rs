@@ -17,7 +17,7 @@ use super::error::SubgridError;
 use super::exchange::{CellInput, CellOutput};
 use super::lift::{box_volume, check_box, check_input, is_trace};
 use super::memory::check_memory;
-use super::profile::{Part, timed};
+use super::profile::{self, Part, timed};
 use super::restrict::combine;
 
 /// What a cell's step starts from, once its input and state are checked.
@@ -210,7 +210,9 @@ pub fn advance_cell(
     state: Option<&CellState>,
 ) -> Result<(CellOutput, CellState), SubgridError> {
     c.check()?;
-    let prepared = prepare(c, cell, input, state, 1, available_bytes())?;
+    let prepared = timed(Part::Coupling, || {
+        prepare(c, cell, input, state, 1, available_bytes())
+    })?;
     let runs = (0..c.replicas)
         .map(|r| {
             let kept = kept_box(c, state, r);
@@ -227,7 +229,9 @@ pub fn advance_cell(
             )
         })
         .collect::<Result<Vec<_>, _>>()?;
-    finish(c, cell, macro_step, input, &prepared, runs)
+    timed(Part::Coupling, || {
+        finish(c, cell, macro_step, input, &prepared, runs)
+    })
 }
 
 fn kept_box<'a>(c: &Coupling, state: Option<&'a CellState>, replica: u32) -> Option<&'a KeptBox> {
@@ -277,6 +281,7 @@ pub fn advance_cells(
     if let Err(e) = c.check() {
         return cells.iter().map(|_| Err(e.clone())).collect();
     }
+    let begun = profile::start();
     // Every thread may be running a box of the largest cell (an estimate per cell
     // against the memory free now, read once).
     let at_once = thread_count(workers.threads).min(cells.len() * c.replicas as usize);
@@ -300,6 +305,7 @@ pub fn advance_cells(
             });
         }
     }
+    profile::add(Part::Coupling, begun);
     let work = |t: &ReplicaTask| run_task(c, t);
     let results = match crate::farm::map(workers, tasks, &work) {
         Ok(r) => r,
@@ -315,8 +321,9 @@ pub fn advance_cells(
                 .collect();
         }
     };
+    let begun = profile::start();
     let mut results = results.into_iter();
-    cells
+    let outputs = cells
         .iter()
         .zip(prepared)
         .map(|((cell, input, _), p)| {
@@ -325,7 +332,9 @@ pub fn advance_cells(
             let runs = runs.into_iter().collect::<Result<Vec<_>, _>>()?;
             finish(c, *cell, macro_step, input, &p, runs)
         })
-        .collect()
+        .collect();
+    profile::add(Part::Coupling, begun);
+    outputs
 }
 
 /// On MPI ranks other than 0: run the boxes rank 0's [`advance_cells`] hands out, until

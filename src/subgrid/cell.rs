@@ -19,7 +19,7 @@ use super::config::Coupling;
 use super::error::SubgridError;
 use super::exchange::CellInput;
 use super::lift::{box_scene, lift, replica_seed};
-use super::profile::{self, Part, timed};
+use super::profile::{Lap, Part};
 use super::restrict::{ClassSums, Replica};
 use crate::resources::{Counters, EnergyLedger};
 
@@ -367,55 +367,57 @@ pub fn run_replica(
         replica,
         reason,
     };
+    // Each part of the box's step is a lap of one stopwatch (profile.rs).
+    let mut lap = Lap::start();
     // A persistent box that held nothing has nothing to continue: lifted afresh.
     let kept = kept.filter(|k| !k.is_empty());
     let scenario = match kept {
         None => {
             let seed = replica_seed(c.base.seed, cell, macro_step, replica);
-            let s =
-                timed(Part::Lift, || lift(c, cell, input, volume, seed)).map_err(|e| match e {
-                    SubgridError::Run { reason, .. } => fail(reason),
-                    other => other,
-                })?;
+            let s = lift(c, cell, input, volume, seed).map_err(|e| match e {
+                SubgridError::Run { reason, .. } => fail(reason),
+                other => other,
+            })?;
+            lap.to(Part::Lift);
             if s.cloud.bodies.is_empty() {
                 return empty_box(c, cell, replica, volume);
             }
             s
         }
         Some(kept) => {
-            let snapshot = timed(Part::Restore, || RestartSnapshot::decode(&kept.snapshot))
-                .map_err(|e| SubgridError::State {
+            let snapshot =
+                RestartSnapshot::decode(&kept.snapshot).map_err(|e| SubgridError::State {
                     cell,
                     reason: format!("replica {replica}: {e}"),
                 })?;
+            lap.to(Part::Restore);
             if let Some(e) = expected.filter(|e| e.classes != input.classes) {
                 // Transport changed the cell: the box adjusted to it (adjust.rs).
                 let seed = replica_seed(c.base.seed, cell, macro_step, replica);
-                let s = timed(Part::Adjust, || {
-                    adjusted_box(c, cell, input, e, volume, seed, &snapshot.bodies)
-                })
-                .map_err(|e| match e {
-                    SubgridError::Run { reason, .. } => fail(reason),
-                    other => other,
-                })?;
+                let s = adjusted_box(c, cell, input, e, volume, seed, &snapshot.bodies).map_err(
+                    |e| match e {
+                        SubgridError::Run { reason, .. } => fail(reason),
+                        other => other,
+                    },
+                )?;
+                lap.to(Part::Adjust);
                 if s.cloud.bodies.is_empty() {
                     return empty_box(c, cell, replica, volume);
                 }
-                return run_scene(c, cell, replica, s, None);
+                return run_scene(c, cell, replica, s, None, lap);
             }
             // The box's settings in the gas of this step; its clock runs on from the
             // snapshot's time, and its bodies are the snapshot's.
-            let mut s = timed(Part::Restore, || {
-                box_scene(c, input, volume.cbrt(), kept.seed, vec![placeholder(input)])
-            });
+            let mut s = box_scene(c, input, volume.cbrt(), kept.seed, vec![placeholder(input)]);
             s.time.end = snapshot.time() + input.dt;
             if s.impact.restitution.is_some() && s.impact.collapse_time.is_none() {
                 s.impact.collapse_time = Some(kept.start.collapse_time);
             }
-            return run_scene(c, cell, replica, s, Some((snapshot, kept.start)));
+            lap.to(Part::Restore);
+            return run_scene(c, cell, replica, s, Some((snapshot, kept.start)), lap);
         }
     };
-    run_scene(c, cell, replica, scenario, None)
+    run_scene(c, cell, replica, scenario, None, lap)
 }
 
 /// The one body of a resumed box's scene: a primary grain at rest at the origin, in the
@@ -434,20 +436,20 @@ fn placeholder(input: &CellInput) -> PlacedBody {
 }
 
 /// Run `scenario` over its end time (resumed from a kept box's snapshot and start, when
-/// given) and measure it.
+/// given) and measure it, timing its parts as laps of `lap`.
 fn run_scene(
     c: &Coupling,
     cell: u64,
     replica: u32,
     scenario: Scenario,
     resume: Option<(RestartSnapshot, BoxStart)>,
+    mut lap: Lap,
 ) -> Result<ReplicaRun, SubgridError> {
     let fail = |reason: String| SubgridError::Run {
         cell,
         replica,
         reason,
     };
-    let built = profile::start();
     // A resumed box is built without its scene's cloud (`placeholder`): the snapshot
     // brings the bodies.
     let builder = match &resume {
@@ -470,11 +472,10 @@ fn run_scene(
     if c.kernel {
         crate::kernel::subscribe(&mut builder);
     }
-    profile::add(Part::Build, built);
+    lap.to(Part::Build);
     // The event core's first prediction of every body happens here (a finisher of
     // `build`, or the core rebuilt by `resume`): what a direct run of the box does
     // first, timed apart from assembling the box.
-    let calendar = profile::start();
     let mut sim = builder.build().map_err(|e| fail(e.to_string()))?;
     let keeps = c.keep_bodies || c.persist;
     let box_start = match resume {
@@ -485,9 +486,9 @@ fn run_scene(
         None if keeps => BoxStart::of(&mut sim),
         None => BoxStart::default(),
     };
-    profile::add(Part::Calendar, calendar);
-    let start = timed(Part::Restrict, || ClassSums::of(c, &sim.bodies()));
-    let running = profile::start();
+    lap.to(Part::Calendar);
+    let start = ClassSums::of(c, &sim.bodies());
+    lap.to(Part::Restrict);
     let (ledger0, counters0) = (sim.ledger(), sim.counters());
     let kernel = if c.kernel {
         let mut acc = Accumulator::new(c.kernel_grid(), Window::default(), Sampling::default());
@@ -500,8 +501,8 @@ fn run_scene(
         sim.run().map_err(|e| fail(e.to_string()))?;
         None
     };
-    profile::add(Part::Run, running);
-    let end = timed(Part::Restrict, || ClassSums::of(c, &sim.bodies()));
+    lap.to(Part::Run);
+    let end = ClassSums::of(c, &sim.bodies());
     let measured = Replica::new(
         start,
         end,
@@ -510,17 +511,22 @@ fn run_scene(
         &counters0,
         &sim.counters(),
     );
+    lap.to(Part::Restrict);
     let kept = keeps.then(|| {
-        timed(Part::Keep, || {
-            // The run is complete: every body is at the end time (Simulation::run_until).
-            let snapshot = agglo_engine::restart::capture(sim.world_mut());
-            KeptBox {
-                seed: scenario.seed,
-                start: box_start,
-                snapshot: snapshot.encode(),
-            }
-        })
+        // The run is complete: every body is at the end time (Simulation::run_until).
+        let snapshot = agglo_engine::restart::capture(sim.world_mut());
+        let kept = KeptBox {
+            seed: scenario.seed,
+            start: box_start,
+            snapshot: snapshot.encode(),
+        };
+        lap.to(Part::Keep);
+        kept
     });
+    // Freeing the box's world is part of every run's cost, timed apart from the
+    // coupling's bookkeeping.
+    drop((sim, scenario));
+    lap.to(Part::Teardown);
     Ok(ReplicaRun {
         measured,
         kernel,

@@ -62,32 +62,54 @@ impl Cells {
     }
 
     fn index(&self, p: [f64; 3]) -> usize {
-        let [x, y, z] = self.coordinates(p);
-        (x * self.per_side + y) * self.per_side + z
+        self.flat(self.coordinates(p))
     }
 
-    /// The cells around `p` (each once, also when there are fewer than three a side),
-    /// into `out` (cleared first).
-    fn around(&self, p: [f64; 3], out: &mut Vec<usize>) {
-        out.clear();
+    /// Per axis, true when the cells around cell `c` along it do not cross the periodic
+    /// boundary and there are at least five a side: a body in them is then less than two
+    /// cell widths ≤ 0.4 side away from a point of cell `c` along that axis (plus
+    /// roundings of an ulp's order in the cell a position is given), so its minimum image
+    /// is the plain difference d — `nearest_whole(d / side)` is exactly 0 for
+    /// |d / side| < 0.5, and d − side·0 is d, bit for bit.
+    fn inside(&self, c: [usize; 3]) -> [bool; 3] {
         let n = self.per_side;
-        let c = self.coordinates(p);
-        // Per axis the neighbour indices: c − 1, c, c + 1 wrapped, or every index.
-        let axis = |i: usize| -> ([usize; 3], usize) {
+        c.map(|c| n >= 5 && c >= 1 && c + 2 <= n)
+    }
+
+    /// The cells around cell `c` (each once, also when there are fewer than three a
+    /// side): the first of the returned count. In no particular order: a move is free
+    /// when no body of any of them overlaps, whatever the order they are looked at in.
+    fn around(&self, c: [usize; 3]) -> ([usize; 27], usize) {
+        let n = self.per_side;
+        // Per axis the neighbour indices, c − 1, c, c + 1 wrapped (by comparison: a
+        // remainder per axis was a quarter of the sweeps' instructions), or every index,
+        // each times the axis's stride.
+        let axis = |i: usize, stride: usize| -> ([usize; 3], usize) {
             if n >= 3 {
-                ([(i + n - 1) % n, i, (i + 1) % n], 3)
+                let below = if i == 0 { n - 1 } else { i - 1 };
+                let above = if i + 1 == n { 0 } else { i + 1 };
+                ([below * stride, i * stride, above * stride], 3)
             } else {
-                ([0, 1, 2], n)
+                ([0, stride, 2 * stride], n)
             }
         };
-        let ((xs, nx), (ys, ny), (zs, nz)) = (axis(c[0]), axis(c[1]), axis(c[2]));
+        let ((xs, nx), (ys, ny), (zs, nz)) = (axis(c[0], n * n), axis(c[1], n), axis(c[2], 1));
+        let mut out = [0usize; 27];
+        let mut count = 0;
         for &x in &xs[..nx] {
             for &y in &ys[..ny] {
                 for &z in &zs[..nz] {
-                    out.push((x * n + y) * n + z);
+                    out[count] = x + y + z;
+                    count += 1;
                 }
             }
         }
+        (out, count)
+    }
+
+    /// The index of cell `c`.
+    fn flat(&self, c: [usize; 3]) -> usize {
+        (c[0] * self.per_side + c[1]) * self.per_side + c[2]
     }
 }
 
@@ -135,24 +157,34 @@ pub(crate) fn equilibrate(
     let half = 0.5 * side;
     let wrap = |x: f64| x - side * ((x + half) / side).floor();
     let (mut tried, mut accepted) = (0u64, 0u64);
-    let mut near = Vec::with_capacity(27);
+    // The positions apart from the rest of each body, side by side in memory.
+    let mut positions: Vec<[f64; 3]> = bodies.iter().map(|b| b.position).collect();
     for _ in 0..sweeps {
         for i in 0..bodies.len() {
-            let old = bodies[i].position;
+            let old = positions[i];
             let d = STEP * radius[i];
             let new = [0, 1, 2].map(|x| wrap(old[x] + d * (2.0 * rng.uniform() - 1.0)));
             tried += 1;
-            cells.around(new, &mut near);
-            let free = near.iter().all(|&c| {
+            let at = cells.coordinates(new);
+            let (near, count) = cells.around(at);
+            let inside = cells.inside(at);
+            let free = near[..count].iter().all(|&c| {
                 cells.members[c].iter().all(|&j| {
                     if j == i {
                         return true;
                     }
-                    let q = bodies[j].position;
+                    let q = positions[j];
                     let mut d2 = 0.0;
                     for x in 0..3 {
                         let d = new[x] - q[x];
-                        let d = d - side * nearest_whole(d / side);
+                        // Along an axis the neighbour cells do not cross the boundary
+                        // on, the image is d itself: the same bits as through
+                        // nearest_whole (`Cells::inside`), without a division.
+                        let d = if inside[x] {
+                            d
+                        } else {
+                            d - side * nearest_whole(d / side)
+                        };
                         d2 += d * d;
                     }
                     let reach = radius[i] + radius[j];
@@ -163,7 +195,7 @@ pub(crate) fn equilibrate(
                 continue;
             }
             accepted += 1;
-            let (from, to) = (cells.index(old), cells.index(new));
+            let (from, to) = (cells.index(old), cells.flat(at));
             if from != to {
                 let at = cells.members[from].iter().position(|&j| j == i);
                 if let Some(at) = at {
@@ -171,8 +203,11 @@ pub(crate) fn equilibrate(
                 }
                 cells.members[to].push(i);
             }
-            bodies[i].position = new;
+            positions[i] = new;
         }
+    }
+    for (body, p) in bodies.iter_mut().zip(positions) {
+        body.position = p;
     }
     accepted as f64 / tried as f64
 }

@@ -559,3 +559,77 @@ fn cost_of_a_persistent_step() {
         );
     }
 }
+
+/// Timing a macro step's parts (`agglo::subgrid::profile`, what benches/subgrid.rs
+/// reads for issue 37's cost goal) changes no byte of its outputs or kept boxes, costs
+/// nothing unless enabled (no part is counted), and when enabled counts the parts a
+/// persistent step has: a first step lifts, builds, predicts, runs, restricts, keeps
+/// and tears down every box; a second step without transport restores them instead of
+/// lifting. The counters are process-wide and only the bench and this test enable
+/// them, so the one test does both (other tests' boxes may add to them while they are
+/// enabled, hence no check that a part stays 0).
+#[test]
+fn timing_the_parts_changes_no_byte_and_counts_each_part() {
+    use agglo::farm::Workers;
+    use agglo::subgrid::profile::{self, Part};
+    let mut c = coupling(300, 4);
+    c.persist = true;
+    let input = monomers(&c, 0.05, 2e-4);
+    let cells: Vec<_> = (0..3u64).map(|i| (i, input.clone(), None)).collect();
+    // Both steps' outputs and states as bytes, on `threads` worker threads.
+    let steps = |threads: usize| -> Vec<Vec<u8>> {
+        let workers = Workers::local(threads);
+        let first: Vec<_> = advance_cells(&c, 0, &cells, &workers)
+            .into_iter()
+            .map(Result::unwrap)
+            .collect();
+        let next: Vec<_> = first
+            .iter()
+            .map(|(out, state)| {
+                (
+                    state.cell(),
+                    apply_rates(&c, &input, out),
+                    Some(state.clone()),
+                )
+            })
+            .collect();
+        let second = advance_cells(&c, 1, &next, &workers);
+        first
+            .into_iter()
+            .chain(second.into_iter().map(Result::unwrap))
+            .map(|(out, state)| {
+                let mut bytes = postcard::to_allocvec(&out).unwrap();
+                bytes.extend(state.to_bytes());
+                bytes
+            })
+            .collect()
+    };
+    let counted = || profile::seconds().map(|(_, s)| s);
+    profile::enable(false);
+    profile::reset();
+    let untimed = steps(2);
+    assert!(
+        counted().iter().all(|&s| s == 0.0),
+        "parts counted while disabled: {:?}",
+        profile::seconds()
+    );
+    profile::enable(true);
+    let timed = steps(2);
+    let parts = profile::seconds();
+    profile::enable(false);
+    assert!(untimed == timed, "timing the parts changed a step's bytes");
+    for part in [
+        Part::Lift,
+        Part::Restore,
+        Part::Build,
+        Part::Calendar,
+        Part::Run,
+        Part::Restrict,
+        Part::Keep,
+        Part::Teardown,
+        Part::Coupling,
+    ] {
+        let s = parts.iter().find(|(p, _)| *p == part).unwrap().1;
+        assert!(s > 0.0, "{} not counted: {parts:?}", part.name());
+    }
+}
