@@ -131,7 +131,7 @@ pub fn observe(hooks: &mut [Hook], sim: &Simulation, end: bool) -> PyResult<()> 
             continue;
         }
         if let Every::Time(dt) = hook.every {
-            hook.next = next_time(hook.next, dt, clock.time);
+            hook.next = agglo::output::sampling::next_time(hook.next, dt, clock.time);
         }
         let empty = match hook.kind {
             Kind::Sample => hook.last_call == Some(clock.time),
@@ -146,23 +146,6 @@ pub fn observe(hooks: &mut [Hook], sim: &Simulation, end: bool) -> PyResult<()> 
             .map_err(|error| with_place(error, hook.kind, clock.step, clock.time))?;
     }
     Ok(())
-}
-
-/// The first time `next + k·dt` (k ≥ 1) after `now`, found at once: a step may pass
-/// many of them, and counting them one by one never ended for `every=1e-20` (1e17 per
-/// step), nor for any dt below the clock's rounding, where `next + dt == next`. When dt is
-/// that fine the hook is due at every step: the next representable time after `now`.
-fn next_time(next: f64, dt: f64, now: f64) -> f64 {
-    if next > now {
-        return next;
-    }
-    let passed = ((now - next) / dt).floor() + 1.0;
-    let candidate = next + passed * dt;
-    if candidate > now {
-        candidate
-    } else {
-        now.next_up()
-    }
 }
 
 fn collect(hook: &mut Hook, sim: &Simulation) {
@@ -269,21 +252,4 @@ fn with_place(error: PyErr, kind: Kind, step: u64, time: f64) -> PyErr {
         wrapped.set_cause(py, Some(error));
         wrapped
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::next_time;
-
-    #[test]
-    fn the_next_time_is_past_now_for_any_interval() {
-        // The ordinary case: the next multiple.
-        assert_eq!(next_time(1.0, 1.0, 2.5), 3.0);
-        assert_eq!(next_time(3.0, 1.0, 2.5), 3.0);
-        // Intervals below the clock's rounding: due at every step, never stuck.
-        for dt in [1e-20, 1e-300, 5e-324] {
-            let next = next_time(1e-9, dt, 1e-3);
-            assert!(next > 1e-3 && next < 1e-3 * (1.0 + 1e-12), "{dt}: {next}");
-        }
-    }
 }

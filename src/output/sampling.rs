@@ -16,6 +16,26 @@ pub const DEFAULT_SAMPLES: f64 = 100.0;
 /// Decades covered by a log schedule whose `first` time is not given: first = T/10⁴.
 pub const DEFAULT_LOG_DECADES: i32 = 4;
 
+/// The first time `next + k·dt` (k ≥ 1) after `now` [s], found at once (Python's
+/// `on_step(every=dt)` hooks): a step may pass
+/// many of them, and counting them one by one never ended for `every=1e-20` (1e17 per
+/// step), nor for any dt below the clock's rounding, where `next + dt == next`. When dt is
+/// that fine the hook is due at every step: the next representable time after `now`.
+pub fn next_time(next: f64, dt: f64, now: f64) -> f64 {
+    if next > now {
+        return next;
+    }
+    let passed = ((now - next) / dt).floor() + 1.0;
+    let candidate = next + passed * dt;
+    // When (now − next)/dt overflows (dt = 5e-324), `passed` and the candidate are ∞:
+    // due at every step, as for any dt below the clock's rounding.
+    if candidate > now && candidate.is_finite() {
+        candidate
+    } else {
+        now.next_up()
+    }
+}
+
 /// The sampling schedule of the time series, size distribution and snapshots.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]

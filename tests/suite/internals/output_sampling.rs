@@ -53,3 +53,16 @@ fn step_schedule_counts_steps_and_ends_with_the_last_step() {
     let got = times(SampleSchedule::Steps { every: 4 }, 10.0, &steps);
     assert_eq!(got, vec![0.0, 4.0, 8.0, 10.0]);
 }
+
+#[test]
+fn the_next_time_is_past_now_for_any_interval() {
+    // The ordinary case: the next multiple.
+    assert_eq!(next_time(1.0, 1.0, 2.5), 3.0);
+    assert_eq!(next_time(3.0, 1.0, 2.5), 3.0);
+    // Intervals below the clock's rounding: due at every step, never stuck, never ∞
+    // (5e-324 once gave ∞: the count of intervals passed overflowed).
+    for dt in [1e-20, 1e-300, 5e-324] {
+        let next = next_time(1e-9, dt, 1e-3);
+        assert!(next > 1e-3 && next < 1e-3 * (1.0 + 1e-12), "{dt}: {next}");
+    }
+}
