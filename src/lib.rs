@@ -46,10 +46,6 @@ pub mod scenario;
 pub mod seeds;
 pub mod separate;
 pub mod study;
-// Issue 37's helper is renaming the subgrid's public items (number_rate,
-// class_granular_temperature): its 44 undocumented items are documented with those
-// names, after that lands; until then they are let through here.
-#[allow(missing_docs)]
 pub mod subgrid;
 pub mod validate;
 

@@ -243,11 +243,18 @@ fn kept_box<'a>(c: &Coupling, state: Option<&'a CellState>, replica: u32) -> Opt
 /// One box of a batch: what a worker (a thread, or another rank) needs to run it.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ReplicaTask {
+    /// The cell's id (the flow solver's).
     pub cell: u64,
+    /// The macro step's number as the caller counts them (with the cell and the
+    /// replica it seeds the box).
     pub macro_step: u64,
+    /// Which of the cell's K boxes, 0-based (it sets the box's seed).
     pub replica: u32,
+    /// The cell's macro state for this step.
     pub input: CellInput,
+    /// The box's volume [m³].
     pub volume: f64,
+    /// The box as the last step left it (persistent or kept boxes), to resume.
     pub kept: Option<KeptBox>,
     /// With `persist`: the cell's remembered state the input is measured against.
     pub expected: Option<CellInput>,

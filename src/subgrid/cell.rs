@@ -316,8 +316,11 @@ impl CellState {
 /// One replica's result: what it measured, its kernel sums, its kept box.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ReplicaRun {
+    /// The class sums and ledgers the box measured over the step.
     pub measured: Replica,
+    /// Its kernel sums, with `Coupling::kernel`.
     pub kernel: Option<Accumulator>,
+    /// The box at the end of the step, when the cell keeps its boxes.
     pub kept: Option<KeptBox>,
 }
 

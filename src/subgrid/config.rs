@@ -20,8 +20,11 @@ pub enum BoxSize {
     /// 1/√(impacts)), from the free-molecular kernel of the input classes
     /// (docs/coupling.md); clamped to [`min_bodies`, `max_bodies`].
     TargetSe {
+        /// The relative standard error aimed at, > 0.
         relative: f64,
+        /// The fewest bodies per box it may choose.
         min_bodies: u32,
+        /// The most bodies per box it may choose.
         max_bodies: u32,
     },
 }
@@ -41,6 +44,7 @@ pub struct Coupling {
     /// lighter than e_0 count in the first class and bodies from the last edge up in
     /// the last (a flow solver's open end sections), so no mass is ever dropped.
     pub edges: Vec<f64>,
+    /// How many bodies a box holds (so its volume).
     pub bodies: BoxSize,
     /// Replica boxes K per cell and step (independent seeds), ≥ 1.
     pub replicas: u32,

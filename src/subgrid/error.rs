@@ -11,32 +11,52 @@ pub enum SubgridError {
     /// The [`super::Coupling`] itself is unusable (before any cell is looked at).
     #[error("coupling: {field} = {value} ({allowed})")]
     Config {
+        /// The coupling's field, by its path.
         field: String,
+        /// The value given.
         value: String,
+        /// What is allowed.
         allowed: String,
     },
     /// A cell's input is out of range.
     #[error("cell {cell}: {field} = {value} ({allowed})")]
     Input {
+        /// The cell's id.
         cell: u64,
+        /// The input's field, by its path.
         field: String,
+        /// The value given.
         value: String,
+        /// What is allowed.
         allowed: String,
     },
     /// A cell's state does not decode, or belongs to another cell or coupling.
     #[error("cell {cell}: state: {reason}")]
-    State { cell: u64, reason: String },
+    State {
+        /// The cell's id.
+        cell: u64,
+        /// Why the state is refused.
+        reason: String,
+    },
     /// The box could not be set up or run (the engine's own message).
     #[error("cell {cell}, replica {replica}: {reason}")]
     Run {
+        /// The cell's id.
         cell: u64,
+        /// Which of its boxes.
         replica: u32,
+        /// The engine's message.
         reason: String,
     },
     /// The task farm failed (a worker panicked, an MPI failure): every cell of the
     /// batch gets this error.
     #[error("cell {cell}: task farm: {reason}")]
-    Farm { cell: u64, reason: String },
+    Farm {
+        /// The cell's id.
+        cell: u64,
+        /// What failed.
+        reason: String,
+    },
 }
 
 impl SubgridError {

@@ -68,6 +68,7 @@ pub struct GasState {
 pub struct CellInput {
     /// One entry per class of the coupling's grid ([`super::Coupling::edges`]).
     pub classes: Vec<ClassInput>,
+    /// The gas the bodies sit in.
     pub gas: GasState,
     /// The macro time step Δt [s], > 0.
     pub dt: f64,
@@ -81,7 +82,9 @@ pub struct CellInput {
 /// finite box or a finite Δt (docs/coupling.md).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Stat {
+    /// The mean over the replicas.
     pub mean: f64,
+    /// Its standard error.
     pub se: f64,
 }
 
@@ -192,7 +195,9 @@ pub struct ClassOutput {
 /// the per-class figures. Every figure is per unit volume of the cell.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct CellOutput {
+    /// The cell's id (the flow solver's).
     pub cell: u64,
+    /// The macro step's number as the caller gave it.
     pub macro_step: u64,
     /// Δt [s] of the step.
     pub dt: f64,
@@ -202,6 +207,7 @@ pub struct CellOutput {
     pub box_volume: f64,
     /// Bodies per box at the start of the step.
     pub bodies: Stat,
+    /// Per class of the coupling's grid, in its order.
     pub classes: Vec<ClassOutput>,
     /// Source rate of the total number density [1/(m³ s)], the column
     /// `total_number_rate` of [`Self::columns`] as in C and Python (the cell's growth:
@@ -231,8 +237,11 @@ pub struct CellOutput {
     pub fracture_energy_rate: Stat,
     /// Impacts, bonds, bounces and fragmentations per unit volume and time [1/(m³ s)].
     pub impact_rate: Stat,
+    /// Impacts that bonded [1/(m³ s)].
     pub bond_rate: Stat,
+    /// Impacts that bounced [1/(m³ s)].
     pub bounce_rate: Stat,
+    /// Fragmentations [1/(m³ s)].
     pub fragment_rate: Stat,
     /// With [`super::Coupling::kernel`]: the per-pair impact counts and exposure of
     /// `agglo kernel` on the coupling's classes, pooled over the replicas (replica
@@ -258,10 +267,15 @@ impl CellOutput {
 /// the axis for per-class vectors).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Column {
+    /// The figure's name (docs/coupling.md, "Figure names").
     pub name: &'static str,
+    /// Its unit.
     pub unit: &'static str,
+    /// `[classes]`, `[classes, 3]`, `[1]` or `[3]`.
     pub shape: Vec<usize>,
+    /// The means, row-major.
     pub mean: Vec<f64>,
+    /// Their standard errors, row-major (NaN where not defined).
     pub se: Vec<f64>,
 }
 

@@ -18,6 +18,7 @@ use super::exchange::{CellInput, CellOutput, ClassOutput, Stat};
 /// Per-class sums over a box's bodies.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct ClassSums {
+    /// Bodies per class.
     pub count: Vec<u64>,
     /// Σ m [kg].
     pub mass: Vec<f64>,
@@ -94,7 +95,9 @@ impl ClassSums {
 /// What one replica box measured over the step.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Replica {
+    /// The class sums at the start of the step.
     pub start: ClassSums,
+    /// At the end.
     pub end: ClassSums,
     /// Ledger at the end less the ledger at the start.
     pub ledger: EnergyLedger,
