@@ -30,9 +30,7 @@ use glam::DVec3;
 
 use agglo_engine::aggregates::{Aggregate, MemberOf, Members, Offset};
 use agglo_engine::bodies::{Clockwork, LazyBody, bring_to};
-use agglo_engine::components::{
-    Hardness, LocalTime, Mass, Particle, ParticleId, Position, Radius, Temperature, Velocity,
-};
+use agglo_engine::components::{Particle, ParticleId};
 use agglo_engine::hooks::{ImpactMessage, Messages};
 use agglo_engine::params::{RunBooks, SceneConstants};
 use agglo_engine::resources::{ContactList, ImpactRecords};
@@ -40,26 +38,18 @@ use agglo_engine::totals::Totals;
 
 use agglo_engine::resources::Contact;
 
+use crate::events::DueBody;
+
 use super::{Apply, CollapseGuard, ImpactModel, PairBody, Separation, pair_model, solve};
 
-/// What a rigid impact reads and writes of each primary of the two aggregates.
+/// What a rigid impact reads and writes of each primary of the two aggregates: what the
+/// event core brings forward of any body ([`DueBody`]), and the primary's place in its
+/// aggregate.
 #[derive(QueryData)]
 #[query_data(mutable)]
 pub struct RigidPrimary {
-    /// Position [m].
-    pub position: &'static mut Position,
-    /// Velocity [m/s] (the aggregate's).
-    pub velocity: &'static mut Velocity,
-    /// Mass [kg] (the primary's own).
-    pub mass: &'static Mass,
-    /// Radius [m].
-    pub radius: &'static Radius,
-    /// Temperature θ [K].
-    pub temperature: &'static mut Temperature,
-    /// Hardness H [Pa].
-    pub hardness: &'static mut Hardness,
-    /// The time the primary's state is at [s].
-    pub local_time: &'static mut LocalTime,
+    /// The primary as a body (its velocity is the aggregate's).
+    pub body: DueBody,
     /// Centre relative to the aggregate's fixed point [m].
     pub offset: &'static mut Offset,
     /// The aggregate.
@@ -118,8 +108,8 @@ pub fn resolve_rigid_contacts(
             continue;
         };
         let (agg_a, agg_b) = (pa.member_of.0, pb.member_of.0);
-        let (ra, theta_a, off_a) = (pa.radius.0, pa.temperature.0, pa.offset.0);
-        let (rb, theta_b, off_b) = (pb.radius.0, pb.temperature.0, pb.offset.0);
+        let (ra, theta_a, off_a) = (pa.body.radius.0, pa.body.temperature.0, pa.offset.0);
+        let (rb, theta_b, off_b) = (pb.body.radius.0, pb.body.temperature.0, pb.offset.0);
         if agg_a == agg_b {
             continue; // one aggregate: its primaries never approach each other
         }
@@ -204,31 +194,35 @@ pub fn resolve_rigid_contacts(
                 let Ok(mut p) = primaries.get_mut(e) else {
                     continue;
                 };
-                let before =
-                    Totals::of_body(p.mass.0, p.velocity.0, p.temperature.0, heat_capacity);
+                let before = Totals::of_body(
+                    p.body.mass.0,
+                    p.body.velocity.0,
+                    p.body.temperature.0,
+                    heat_capacity,
+                );
                 events.touch(e, before);
                 let lazy = LazyBody::of(
-                    &mut p.position,
-                    &mut p.velocity,
-                    p.mass,
-                    p.radius,
-                    &mut p.temperature,
-                    &mut p.hardness,
-                    &mut p.local_time,
+                    &mut p.body.position,
+                    &mut p.body.velocity,
+                    p.body.mass,
+                    p.body.radius,
+                    &mut p.body.temperature,
+                    &mut p.body.hardness,
+                    &mut p.body.local_time,
                 );
                 bring_to(now, &clockwork, lazy).enter(&mut *apply.ledger);
-                p.velocity.0 = velocity;
+                p.body.velocity.0 = velocity;
                 // The touching primary takes the law's temperature, the others its rise
                 // (so an aggregate of one is exactly a sphere of the coalesce mode).
-                p.temperature.0 = if e == touching {
+                p.body.temperature.0 = if e == touching {
                     temperature
                 } else {
-                    p.temperature.0 + rise
+                    p.body.temperature.0 + rise
                 };
-                p.hardness.0 = material.hardness(p.temperature.0);
+                p.body.hardness.0 = material.hardness(p.body.temperature.0);
                 p.offset.0 += shift;
                 if push != DVec3::ZERO {
-                    p.position.0 = geometry.wrap(p.position.0 + push);
+                    p.body.position.0 = geometry.wrap(p.body.position.0 + push);
                 }
             }
         }

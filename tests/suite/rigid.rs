@@ -277,6 +277,16 @@ fn assert_aggregates_are_rigid_and_connected(sim: &Simulation) {
     }
 }
 
+/// scenarios/bcca.json with `edit` applied, run to its end: the scene and the finished run.
+fn bcca(edit: impl FnOnce(&mut Scenario)) -> (Scenario, Simulation) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/bcca.json");
+    let mut scene = Scenario::load(&path).expect("scenarios/bcca.json loads");
+    edit(&mut scene);
+    let mut sim = Simulation::new(&scene).expect("builds");
+    sim.run().expect("runs");
+    (scene, sim)
+}
+
 /// D_f, k_f of the aggregates of a finished run, fitted over k ≥ `min_k`.
 fn fit(sim: &Simulation, min_k: usize) -> (f64, f64, usize) {
     let shapes: Vec<AggregateShape> = aggregate_shapes(sim.world());
@@ -312,10 +322,7 @@ fn ten_thousand_primaries_grow_to_a_mean_of_a_hundred_with_an_open_fractal_dimen
     // fit ≈ 0.04) with k_f = 1.36, 1.17, 1.27 and means of 169, 167, 161 primaries. The
     // band is issue 41's, the literature's ballistic cluster–cluster 1.9–1.95 widened by
     // the seed-to-seed spread (0.05).
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/bcca.json");
-    let scene = Scenario::load(&path).expect("scenarios/bcca.json loads");
-    let mut sim = Simulation::new(&scene).expect("builds");
-    sim.run().expect("runs");
+    let (_, sim) = bcca(|_| {});
     let summary = sim.summary().aggregates.expect("aggregates");
     assert!(summary.mean_primaries >= 100.0, "{summary:?}");
     let (d_f, k_f, used) = fit(&sim, FIT_MIN_PRIMARIES);
@@ -337,12 +344,8 @@ fn ten_thousand_primaries_grow_to_a_mean_of_a_hundred_with_an_open_fractal_dimen
 #[ignore = "two more 1e4 runs (≈ 5 s): cargo test --test suite rigid -- --ignored"]
 fn other_seeds_of_bcca_give_what_the_docs_quote() {
     // docs/model.md §6.1: seeds 2 and 3 of scenarios/bcca.json give D_f = 1.97 and 1.92.
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/bcca.json");
     for (seed, quoted) in [(2, 1.97), (3, 1.92)] {
-        let mut scene = Scenario::load(&path).expect("scenarios/bcca.json loads");
-        scene.seed = seed;
-        let mut sim = Simulation::new(&scene).expect("builds");
-        sim.run().expect("runs");
+        let (_, sim) = bcca(|scene| scene.seed = seed);
         let (d_f, _, _) = fit(&sim, FIT_MIN_PRIMARIES);
         assert!((d_f - quoted).abs() < 0.005, "seed {seed}: D_f = {d_f}");
     }
@@ -355,12 +358,10 @@ fn a_hundred_thousand_primaries_grow_to_a_mean_of_a_hundred() {
     // D_f = 1.909 ± 0.013, k_f = 1.33 over the 550 with k ≥ 5.
     // scenarios/bcca.json with 10× the primaries in a box 10^(1/3) wider (φ kept), as
     // `agglo run scenarios/bcca.json --set cloud.count=100000 --set box.half_width=0.021544`.
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/bcca.json");
-    let mut scene = Scenario::load(&path).expect("scenarios/bcca.json loads");
-    scene.cloud.count = 100_000;
-    scene.domain.half_width = 0.021544;
-    let mut sim = Simulation::new(&scene).expect("builds");
-    sim.run().expect("runs");
+    let (mut scene, sim) = bcca(|scene| {
+        scene.cloud.count = 100_000;
+        scene.domain.half_width = 0.021544;
+    });
     let summary = sim.summary().aggregates.expect("aggregates");
     assert!(summary.mean_primaries >= 100.0, "{summary:?}");
     let (d_f, k_f, used) = fit(&sim, FIT_MIN_PRIMARIES);
