@@ -20,7 +20,7 @@
 //! The charge scale q0 is the plugin's section of the scenario, `plugins.charged_grains`
 //! ([`ChargeLaw`]), and this program is the `agglo` command line with the plugin
 //! (`agglo::cli::main_with`): the section is validated, overridden with `--set`, swept by
-//! `scan` and searched by `optimize` as a built-in one is (tests/suite/extension_binary.rs):
+//! `scan` and searched by `optimize` as a built-in one is (tests/interfaces/extension_binary.rs):
 //!
 //! ```text
 //! cargo run --release --example charged_grains -- run scenarios/plugins/charged_grains.json --final-state final.csv

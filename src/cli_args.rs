@@ -3,7 +3,7 @@
 //!
 //! In the library rather than the binary so that tests parse command lines with the real
 //! parser (`Cli::try_parse_from`: the guides' examples are checked that way,
-//! tests/suite/docs.rs) and so that the shell completions and the man page are generated
+//! tests/interfaces/docs.rs) and so that the shell completions and the man page are generated
 //! from it (`agglo completions`, `agglo man`).
 
 use std::path::PathBuf;

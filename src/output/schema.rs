@@ -409,5 +409,5 @@ the new t = 0, which can differ from the whole run's in the last bits), the coun
 invariants' reference totals (they start again from the loaded state). On the stepped
 core with a fixed Δt, a run without random draws after set-up continued from its own
 final state ends bit for bit where the uninterrupted run ends when Δt and the split
-time are exact in binary (`tests/suite/initial_data.rs`).
+time are exact in binary (`tests/interfaces/initial_data.rs`).
 ";

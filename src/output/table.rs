@@ -543,7 +543,7 @@ fn read_csv(path: &Path) -> anyhow::Result<Table> {
 }
 
 /// [`read_parquet`], with a damaged file's panics inside the parquet crate turned into
-/// an error: the fuzz harness (tests/suite/fuzz.rs) found its assertions "column start
+/// an error: the fuzz harness (tests/interfaces/fuzz.rs) found its assertions "column start
 /// and length should not be negative" and "Decoder for dict should have been set" fire
 /// on one flipped bit. The first is also checked before reading (below).
 fn read_parquet_guarded(path: &Path) -> anyhow::Result<Table> {

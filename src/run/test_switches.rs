@@ -1,5 +1,5 @@
 //! Switches for the tests that watch a process die or hang at a step they choose
-//! (tests/suite/restart.rs, damaged_input.rs, extension_binary.rs). The environment is
+//! (tests/interfaces/restart.rs, damaged_input.rs, extension_binary.rs). The environment is
 //! read once, when the run starts; a run without these variables holds no such observer,
 //! so the production loop never looks at them.
 //!

@@ -1,48 +1,37 @@
-//! The integration tests, one module per theme, linked into one test binary.
+//! The integration tests of the model, one module per theme, linked into one test binary:
+//! physics against closed forms and conservation laws, the event and stepped cores, fields,
+//! extensions, kernels, the subgrid coupling, rigid aggregates, the inverse problem, and
+//! the library's inner pieces (`internals`). Their twin, `tests/interfaces/`, tests the
+//! program's doors (CLI, files, recordings, live view, signals, restart, the docs).
 //!
-//! One binary instead of one per file: each integration-test binary links the whole
-//! engine, and linking eighteen of them dominated a fresh `cargo test`. A theme is
-//! still run on its own with `cargo test --test suite THEME::` (e.g. `record::`).
-//! `tests/mpi.rs` stays apart: it is built only with `--features mpi`.
+//! Two binaries rather than one per file or one in all: each integration-test binary links
+//! the whole engine, so eighteen of them made linking dominate a fresh `cargo test`; but one
+//! binary is compiled by one rustc, mostly on one core, at the end of the build. Two halves
+//! compile side by side on a two-core machine. A theme still runs on its own with
+//! `cargo test --test suite THEME::` (e.g. `subgrid::`). `tests/mpi.rs` stays apart: it is
+//! built only with `--features mpi`.
 
+#[path = "../common/mod.rs"]
 mod common;
 
 mod carried;
-mod cli;
 mod closed_form;
 mod conservation;
-mod damaged_input;
 mod determinism;
-mod docs;
-mod door_refusals;
 mod energy_ledgers;
 mod events;
 mod extension;
-mod extension_binary;
 mod fields;
-mod first_day;
-mod fuzz;
-mod fuzz_doors;
 mod hooks;
-mod initial_data;
 mod internals;
 mod inverse;
 mod kernel;
 mod kernel_harden;
-mod layout;
-mod live;
 mod outcome;
-mod outputs;
 mod pipeline_from_outside;
 mod properties;
 mod readings;
-mod record;
-mod restart;
 mod rigid;
-mod scenario_input;
-mod scenarios;
-mod self_contained;
-mod signals;
 mod stepping;
 mod study;
 mod subgrid;
@@ -50,8 +39,5 @@ mod subgrid_harden;
 mod subgrid_persist;
 mod subgrid_structure;
 mod subgrid_unbiased;
-mod unfinishable_runs;
 mod walls;
 mod worked_examples;
-mod world_memory;
-mod writers;

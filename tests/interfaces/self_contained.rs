@@ -270,7 +270,7 @@ fn the_walk_covers_the_repository() {
         "src/lib.rs",
         "engine/lib.rs",
         "systems/lib.rs",
-        "tests/suite/self_contained.rs",
+        "tests/interfaces/self_contained.rs",
     ] {
         assert!(
             names.contains(expected),

@@ -16,8 +16,8 @@ use agglo::subgrid::*;
 use proptest::prelude::*;
 use serde_json::Value;
 
+use crate::common::cells::{coupling, monomers};
 use crate::fuzz::{apply, edits, extreme, fuzz_config, numeric_paths, set, within_time};
-use crate::subgrid::{coupling, monomers};
 
 fn corpus(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

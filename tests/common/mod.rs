@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests: scenarios built from JSON snippets.
 #![allow(dead_code)]
 
+pub mod cells;
+
 use agglo::prelude::*;
 use serde_json::{Value, json};
 

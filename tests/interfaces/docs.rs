@@ -353,7 +353,7 @@ fn the_minimal_scenario_runs_and_needs_each_of_its_sections() {
 }
 
 /// docs/extending.md opens with the first force as examples/first_force.rs has it (the
-/// program tests/suite/extension_binary.rs runs), and no page or crate marks a code
+/// program tests/interfaces/extension_binary.rs runs), and no page or crate marks a code
 /// example `ignore`: each one compiles, runs, or is plain text.
 #[test]
 fn the_first_force_on_the_page_is_the_example_that_runs() {

@@ -10,7 +10,7 @@ use std::process::{Command, Output};
 use agglo::prelude::*;
 use agglo::subgrid::*;
 
-use crate::subgrid::{coupling, monomers};
+use crate::common::cells::{coupling, monomers};
 
 fn quick_demo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/quick_demo.json")
