@@ -48,10 +48,14 @@ pub fn save_png_and_svg(
     let png = dir.join(format!("{stem}.png"));
     let svg = dir.join(format!("{stem}.svg"));
     {
-        let root = BitMapBackend::new(&png, size).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
-        figure.draw(&root)?;
-        root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
+        let mut pixels = vec![0u8; 3 * size.0 as usize * size.1 as usize];
+        {
+            let root = BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area();
+            root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
+            figure.draw(&root)?;
+            root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
+        }
+        write_png(&png, size, &pixels)?;
     }
     {
         let root = SVGBackend::new(&svg, size).into_drawing_area();
@@ -59,5 +63,27 @@ pub fn save_png_and_svg(
         figure.draw(&root)?;
         root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
     }
+    Ok(())
+}
+
+/// Write 8-bit RGB `pixels` as a PNG file, encoded as plotters' own file target did through
+/// the `image` crate (fast deflate, adaptive filtering from Sub), so the charts keep their
+/// bytes: drawing into a buffer and encoding with `png` here spares a fresh build the
+/// `image` crate and its JPEG and BMP codecs, which nothing else uses.
+fn write_png(path: &Path, size: (u32, u32), pixels: &[u8]) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let file =
+        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), size.0, size.1);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_compression(png::Compression::Fast);
+    encoder.set_filter(png::FilterType::Sub);
+    encoder.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
+    let mut writer = encoder.write_header()?;
+    writer
+        .write_image_data(pixels)
+        .with_context(|| format!("writing {}", path.display()))?;
+    writer.finish()?;
     Ok(())
 }
