@@ -341,6 +341,11 @@ fn macro_steps() {
                 cpu,
                 &parts,
             );
+            let state_bytes: usize = first.iter().map(|(_, s)| s.to_bytes().len()).sum();
+            eprintln!(
+                "  states after the first step: {state_bytes} bytes, {:.0} per box",
+                state_bytes as f64 / (cells * c.replicas as usize) as f64
+            );
             let held: Vec<CellInput> = first
                 .iter()
                 .zip(&inputs)

@@ -1,6 +1,8 @@
 //! Advancing cells: one ([`advance_cell`]) or a macro step's batch on the task farm
 //! ([`advance_cells`]: threads here, and every MPI rank under `mpirun`; [`serve`] on
-//! the ranks other than 0). Each (cell, replica) box is one task; the results are put
+//! the ranks other than 0). Each (cell, replica) box is one task — borrowed from the
+//! caller's cells on this process's threads (`farm::map_local`), an owned copy sent as
+//! bytes under MPI (`farm::map`), run by the same function; the results are put
 //! together in cell and replica order, so they are the same bytes for any number of
 //! threads or ranks and any order of the cells in the batch.
 
@@ -240,7 +242,8 @@ fn kept_box<'a>(c: &Coupling, state: Option<&'a CellState>, replica: u32) -> Opt
         .and_then(|s| s.boxes.get(replica as usize))
 }
 
-/// One box of a batch: what a worker (a thread, or another rank) needs to run it.
+/// One box of a batch as another MPI rank receives it: what it needs to run the box.
+/// (On this process's threads a box runs from the caller's cells, without a copy.)
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ReplicaTask {
     /// The cell's id (the flow solver's).
@@ -274,6 +277,46 @@ pub fn run_task(c: &Coupling, t: &ReplicaTask) -> Result<ReplicaRun, SubgridErro
     )
 }
 
+/// One box of a batch borrowed from the caller's cells: what [`ReplicaTask`] holds,
+/// without copying the cell's input, kept box or remembered state.
+struct BoxOfCell<'a> {
+    cell: u64,
+    replica: u32,
+    input: &'a CellInput,
+    volume: f64,
+    kept: Option<&'a KeptBox>,
+    expected: Option<&'a CellInput>,
+}
+
+impl BoxOfCell<'_> {
+    /// Run the box ([`run_task`] on [`Self::task`] gives the same bytes).
+    fn run(&self, c: &Coupling, macro_step: u64) -> Result<ReplicaRun, SubgridError> {
+        run_replica(
+            c,
+            self.cell,
+            macro_step,
+            self.replica,
+            self.input,
+            self.volume,
+            self.kept,
+            self.expected,
+        )
+    }
+
+    /// The box as an owned task, to send to another rank.
+    fn task(&self, macro_step: u64) -> ReplicaTask {
+        ReplicaTask {
+            cell: self.cell,
+            macro_step,
+            replica: self.replica,
+            input: self.input.clone(),
+            volume: self.volume,
+            kept: self.kept.cloned(),
+            expected: self.expected.cloned(),
+        }
+    }
+}
+
 /// Advance a macro step's cells — (cell id, input, state or `None`) each — as
 /// independent tasks on `workers`, one per (cell, replica). Results in the order of
 /// `cells`, each as [`advance_cell`] would give it: a cell's bad input is that cell's
@@ -297,24 +340,38 @@ pub fn advance_cells(
         .iter()
         .map(|(cell, input, state)| prepare(c, *cell, input, state.as_ref(), at_once, available))
         .collect();
-    let mut tasks = Vec::new();
+    let mut boxes = Vec::new();
     for ((cell, input, state), p) in cells.iter().zip(&prepared) {
         let Ok(p) = p else { continue };
-        for r in 0..c.replicas {
-            tasks.push(ReplicaTask {
+        let expected = state.as_ref().and_then(|s| s.expected.as_ref());
+        for replica in 0..c.replicas {
+            boxes.push(BoxOfCell {
                 cell: *cell,
-                macro_step,
-                replica: r,
-                input: input.clone(),
+                replica,
+                input,
                 volume: p.volume,
-                kept: kept_box(c, state.as_ref(), r).cloned(),
-                expected: state.as_ref().and_then(|s| s.expected.clone()),
+                kept: kept_box(c, state.as_ref(), replica),
+                expected,
             });
         }
     }
     profile::add(Part::Coupling, begun);
-    let work = |t: &ReplicaTask| run_task(c, t);
-    let results = match crate::farm::map(workers, tasks, &work) {
+    let results = match workers.cluster {
+        // On this process's threads the boxes are run where they lie: no copy of a kept
+        // box, no hand-over per box (farm/local.rs).
+        None => crate::farm::map_local(workers.threads, &boxes, &|b: &BoxOfCell| {
+            b.run(c, macro_step)
+        }),
+        // Other ranks need the tasks as bytes: owned copies.
+        Some(_) => {
+            let begun = profile::start();
+            let tasks: Vec<ReplicaTask> = boxes.iter().map(|b| b.task(macro_step)).collect();
+            profile::add(Part::Coupling, begun);
+            let work = |t: &ReplicaTask| run_task(c, t);
+            crate::farm::map(workers, tasks, &work)
+        }
+    };
+    let results = match results {
         Ok(r) => r,
         Err(e) => {
             return cells
