@@ -338,6 +338,9 @@ fn ten_thousand_primaries_grow_to_a_mean_of_a_hundred_with_an_open_fractal_dimen
     assert!((fractal.dimension - 1.87).abs() < 0.005, "{fractal:?}");
     assert!((fractal.dimension_se - 0.04).abs() < 0.005, "{fractal:?}");
     assert!((fractal.prefactor - 1.36).abs() < 0.005, "{fractal:?}");
+    // The mean filling factor Σa³/R_c³ of its aggregates of k ≥ 5 (docs/model.md §6.1).
+    let phi = summary.mean_filling_factor.expect("aggregates of k ≥ 5");
+    assert!((phi - 0.0993).abs() < 5e-5, "{phi}");
 }
 
 #[test]
@@ -582,4 +585,184 @@ fn without_bonds_a_rigid_run_is_the_coalesce_run_bit_for_bit() {
     assert!(coalesce.1.bounces > 1000, "{:?}", coalesce.1);
     assert_eq!(coalesce.1.bonds, 0);
     assert!(coalesce == rigid, "{:?}\n{:?}", coalesce.1, rigid.1);
+}
+
+/// Each aggregate's radius of gyration from the final state alone: its primaries (by the
+/// `aggregate` column) unwrapped across the periodic boundary by walking its touching
+/// pairs (each step the minimum image of a separation of 2a, far below half the box),
+/// then R_g of the centres, mass-weighted. Sorted by aggregate id: (id, k, R_g).
+fn radii_of_gyration_from_the_final_state(sim: &Simulation) -> Vec<(u64, usize, f64)> {
+    let bodies = sim.bodies();
+    let carried = sim.carried();
+    let column = carried.names.iter().position(|n| n == "aggregate").unwrap();
+    let of: Vec<u64> = carried
+        .rows
+        .iter()
+        .map(|r| r.1[column].unwrap() as u64)
+        .collect();
+    let side = 2.0 * sim.world().resource::<BoxGeometry>().half_width;
+    let image = |d: DVec3| d - side * (d / side).round();
+    let mut ids: Vec<u64> = of.clone();
+    ids.sort_unstable();
+    ids.dedup();
+    ids.into_iter()
+        .map(|id| {
+            let members: Vec<usize> = (0..bodies.len()).filter(|&i| of[i] == id).collect();
+            let mut unwrapped: Vec<Option<DVec3>> = vec![None; members.len()];
+            unwrapped[0] = Some(bodies[members[0]].position);
+            let mut queue = vec![0];
+            while let Some(p) = queue.pop() {
+                for q in 0..members.len() {
+                    let (a, b) = (&bodies[members[p]], &bodies[members[q]]);
+                    let d = image(b.position - a.position);
+                    if unwrapped[q].is_none() && d.length() <= (a.radius + b.radius) * (1.0 + 1e-9)
+                    {
+                        unwrapped[q] = Some(unwrapped[p].unwrap() + d);
+                        queue.push(q);
+                    }
+                }
+            }
+            let x: Vec<(f64, DVec3)> = members
+                .iter()
+                .zip(&unwrapped)
+                .map(|(&i, u)| (bodies[i].mass, u.expect("connected")))
+                .collect();
+            let mass: f64 = x.iter().map(|p| p.0).sum();
+            let centre = x.iter().map(|p| p.0 * p.1).sum::<DVec3>() / mass;
+            let spread: f64 = x
+                .iter()
+                .map(|p| p.0 * (p.1 - centre).length_squared())
+                .sum();
+            (id, members.len(), (spread / mass).sqrt())
+        })
+        .collect()
+}
+
+#[test]
+fn the_size_table_of_a_rigid_scene_counts_aggregates_with_their_shape() {
+    use agglo::output::table::read_table;
+    use agglo::output::{RunTables, SampleSchedule, TablePaths};
+    let s = cluster_cluster(300, 0.3, 3);
+    let dir = tempfile::tempdir().unwrap();
+    let paths = TablePaths {
+        sizes: Some(dir.path().join("sizes.csv")),
+        sampling: Some(SampleSchedule::Steps { every: 50 }),
+        ..TablePaths::default()
+    };
+    let mut sim = Simulation::new(&s).unwrap();
+    let mut tables = RunTables::open(&paths, &s, &sim).unwrap().unwrap();
+    sim.run_with(|sim| {
+        tables.observe(sim).unwrap();
+        std::ops::ControlFlow::Continue(())
+    })
+    .unwrap();
+    tables.finish(&sim).unwrap();
+    let table = read_table(&dir.path().join("sizes.csv")).unwrap();
+    let (t, bin, count) = (
+        table.floats("t").unwrap(),
+        table.ints("bin").unwrap(),
+        table.ints("count").unwrap(),
+    );
+    let (r_g, phi) = (
+        table.floats("radius_of_gyration").unwrap(),
+        table.floats("filling_factor").unwrap(),
+    );
+    let a = sim.primary().radius;
+    let mut samples = t.clone();
+    samples.dedup();
+    assert!(samples.len() >= 3, "{samples:?}");
+    for &ts in &samples {
+        let rows: Vec<usize> = (0..t.len()).filter(|&k| t[k] == ts).collect();
+        // Bins by k: every primary in exactly one aggregate.
+        let primaries: i64 = rows.iter().map(|&k| bin[k] * count[k]).sum();
+        assert_eq!(primaries, 300, "t = {ts}: Σ k n_k = N");
+        for &k in &rows {
+            // Closed forms (centres only): a monomer's R_g is 0 and it fills itself; a
+            // dimer's centres sit a from their middle, R_g = a, φ = 2a³/(√(5/3) a)³; a
+            // trimer lies between the triangle (R_g = 2a/√3) and the line (2a·√(2/3)).
+            let rel = 1e-12; // rounding of the offsets, sums of a few terms
+            match bin[k] {
+                1 => assert!(
+                    r_g[k] == 0.0 && phi[k] == 1.0,
+                    "t = {ts}: {} {}",
+                    r_g[k],
+                    phi[k]
+                ),
+                2 => {
+                    assert!((r_g[k] / a - 1.0).abs() < rel, "dimer R_g {}", r_g[k] / a);
+                    let expected = 2.0 / (5.0f64 / 3.0).powf(1.5);
+                    assert!(
+                        (phi[k] / expected - 1.0).abs() < 1e-11,
+                        "dimer φ {}",
+                        phi[k]
+                    );
+                }
+                3 => {
+                    let (lo, hi) = (2.0 / 3f64.sqrt(), 2.0 * (2.0f64 / 3.0).sqrt());
+                    assert!(
+                        r_g[k] / a > lo * (1.0 - rel) && r_g[k] / a < hi * (1.0 + rel),
+                        "trimer R_g {}",
+                        r_g[k] / a
+                    );
+                }
+                _ => assert!(phi[k] > 0.0 && phi[k] < 1.0, "φ = {}", phi[k]),
+            }
+        }
+    }
+    // The last sample against the final state unwrapped on its own: the bins' counts
+    // and mean R_g (relative 1e-9: positions are wrapped, offsets are not).
+    let last = *samples.last().unwrap();
+    let independent = radii_of_gyration_from_the_final_state(&sim);
+    let summary = sim.summary().aggregates.unwrap();
+    let rows: Vec<usize> = (0..t.len()).filter(|&k| t[k] == last).collect();
+    assert_eq!(
+        rows.iter().map(|&k| count[k]).sum::<i64>() as usize,
+        summary.count
+    );
+    assert_eq!(independent.len(), summary.count);
+    for &k in &rows {
+        let of_k: Vec<f64> = independent
+            .iter()
+            .filter(|x| x.1 as i64 == bin[k])
+            .map(|x| x.2)
+            .collect();
+        assert_eq!(of_k.len() as i64, count[k], "k = {}", bin[k]);
+        let mean = of_k.iter().sum::<f64>() / of_k.len() as f64;
+        assert!(
+            (r_g[k] - mean).abs() <= 1e-9 * a,
+            "k = {}: table {} against {mean}",
+            bin[k],
+            r_g[k]
+        );
+    }
+}
+
+#[test]
+fn a_rigid_scene_with_outcome_hooks_is_refused_naming_the_merge_mode() {
+    use agglo::hooks::PendingImpacts;
+    fn hook(_pending: agglo::bevy_ecs::prelude::ResMut<PendingImpacts>) {}
+    let mut builder = Simulation::builder(&dimer_and_monomer(1.0)).unwrap();
+    builder
+        .add_default_plugins()
+        .add_impact_outcome_systems(hook);
+    let err = builder.build().err().expect("refused").to_string();
+    assert!(
+        err.contains("physics.merge_mode")
+            && err.contains("rigid")
+            && !err.contains("add the impact plugin"),
+        "{err}"
+    );
+}
+
+#[test]
+fn validate_counts_the_aggregates_of_a_rigid_scene_in_its_memory_estimate() {
+    use agglo::memory::{MemoryEstimate, RIGID_BYTES_PER_BODY};
+    let rigid_scene = cluster_cluster(1000, 0.1, 1);
+    let mut coalesce = rigid_scene.clone();
+    coalesce.physics.merge_mode = agglo::scene::MergeMode::Coalesce;
+    let (r, c) = (
+        MemoryEstimate::of(&rigid_scene),
+        MemoryEstimate::of(&coalesce),
+    );
+    assert_eq!(r.bytes - c.bytes, 1000.0 * RIGID_BYTES_PER_BODY);
 }
