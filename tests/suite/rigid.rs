@@ -766,3 +766,101 @@ fn validate_counts_the_aggregates_of_a_rigid_scene_in_its_memory_estimate() {
     );
     assert_eq!(r.bytes - c.bytes, 1000.0 * RIGID_BYTES_PER_BODY);
 }
+
+/// Ballistic particle–cluster aggregation (agglo::particle_cluster): every monomer
+/// after the seed touches an earlier primary where it stopped and overlaps none; the
+/// same seed grows the same aggregate bit for bit. O(N²) here: 2000 primaries.
+#[test]
+fn particle_cluster_monomers_stick_where_they_first_touch() {
+    use agglo::particle_cluster::grow;
+    let a = 1e-6;
+    let g = grow(2000, a, 7);
+    assert_eq!(g, grow(2000, a, 7));
+    assert_eq!(g.centres.len(), 2000);
+    assert_eq!(g.fired, 2000 - 1 + g.missed);
+    assert!(g.missed > 0, "the lines are drawn wider than the aggregate");
+    for (k, x) in g.centres.iter().enumerate().skip(1) {
+        let closest = g.centres[..k]
+            .iter()
+            .map(|y| (*x - *y).length())
+            .fold(f64::INFINITY, f64::min);
+        // It stopped at first touch: 2a from a primary, to the rounding of a line
+        // point a few tens of a from the origin (1e-12 relative).
+        assert!(
+            (closest / (2.0 * a) - 1.0).abs() < 1e-12,
+            "primary {k}: nearest earlier centre at {} a",
+            closest / a
+        );
+        // Later arrivals never overlap it either.
+        for y in &g.centres[k + 1..] {
+            assert!((*x - *y).length() >= 2.0 * a * (1.0 - 1e-12));
+        }
+    }
+    // The R_g kept during the growth is the final aggregate's (one pass against two).
+    let rg = *g.radius_of_gyration.last().unwrap();
+    assert!((rg / g.shape().radius_of_gyration - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn particle_cluster_aggregates_are_compact_with_the_known_filling_factor() {
+    use agglo::particle_cluster::grow;
+    // Four aggregates of 10⁴ primaries (≈ 0.2 s each in the debug profile). Seeds 1–8
+    // gave D_f over the last decade of growth (R_g against k for k = 10³..10⁴, one
+    // aggregate) 2.98, 2.94, 2.89, 2.88, 2.99, 2.84, 2.86, 3.22 (mean 2.95, spread
+    // 0.12), and over k = 10..10² 2.68, 2.21, 2.83, …: the local dimension rises to 3,
+    // the dimension of ballistic particle–cluster aggregates (Meakin 1984; Kozasa, Blum
+    // & Mukai 1992, A&A 263, 423). The mean of four is within 0.06 (one SE) of the
+    // mean of eight; the band 2.8–3.15 is 3 ± 2.5 SE, a little wider above.
+    let mut d_f = Vec::new();
+    let mut early = Vec::new();
+    let mut filling = Vec::new();
+    let mut core = Vec::new();
+    for seed in 1..=4 {
+        let g = grow(10_000, 1.0, seed);
+        let fit = |from, to| {
+            fractal_fit(&g.history(from, to), 1.0, from)
+                .expect("a fit")
+                .dimension
+        };
+        d_f.push(fit(1000, 10_000));
+        early.push(fit(10, 100));
+        let shape = g.shape();
+        filling.push(shape.filling_factor);
+        core.push(g.filling_factor_within(0.5 * shape.radius_of_gyration));
+    }
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+    assert!((2.8..=3.15).contains(&mean(&d_f)), "D_f {d_f:?}");
+    assert!(mean(&early) < mean(&d_f), "{early:?} then {d_f:?}");
+    // The filling factor Σa³/R_c³ with R_c = √(5/3) R_g, the measure of Kozasa, Blum &
+    // Mukai (1992), whose large BPCA aggregates have porosity 0.85–0.87, φ ≈ 0.13–0.15.
+    // Measured: 0.127, 0.135, 0.131, 0.134 (seeds 5–8: 0.137, 0.131, 0.134, 0.123).
+    // The band 0.12–0.16 is the literature's range widened by the seed spread (0.005).
+    assert!(
+        filling.iter().all(|f| (0.12..=0.16).contains(f)),
+        "{filling:?}"
+    );
+    // Inside 0.5 R_g about the centre of mass (primaries cut by the sphere counted by
+    // their exact lens): 0.183, 0.183, 0.181, 0.184 — denser than the ≈ 0.15 the issue
+    // quotes, and falling with size (2000 primaries: 0.20–0.22; 10⁵: 0.153, the ignored
+    // test below); the band 0.17–0.20 is the measured spread of seeds 1–8
+    // (0.181–0.192) with a margin of half of it.
+    assert!(core.iter().all(|f| (0.17..=0.20).contains(f)), "{core:?}");
+}
+
+#[test]
+#[ignore = "10⁵ primaries, ≈ 11 s (debug profile): cargo test --test suite rigid -- --ignored"]
+fn a_hundred_thousand_primary_particle_cluster_aggregate_has_what_the_docs_quote() {
+    use agglo::particle_cluster::grow;
+    // docs/aggregates.md quotes this deterministic run (seed 1): 178 683 monomers fired
+    // for 10⁵ primaries; D_f 2.98 over k = 10⁴..10⁵; filling factor 0.127 (R_c
+    // measure) and 0.153 inside 0.5 R_g — the ≈ 0.15 of large BPCA aggregates.
+    let g = grow(100_000, 1.0, 1);
+    assert_eq!(g.fired, 178_683);
+    let fit = fractal_fit(&g.history(10_000, 100_000), 1.0, 10_000).unwrap();
+    assert!((fit.dimension - 2.982).abs() < 5e-4, "{fit:?}");
+    let shape = g.shape();
+    assert!((shape.radius_of_gyration - 71.53).abs() < 5e-3, "{shape:?}");
+    assert!((shape.filling_factor - 0.1270).abs() < 5e-5, "{shape:?}");
+    let core = g.filling_factor_within(0.5 * shape.radius_of_gyration);
+    assert!((core - 0.1528).abs() < 5e-5, "{core}");
+}
