@@ -116,10 +116,12 @@ impl RunTables {
             .collect();
         let sizes = match create(&paths.sizes, "sizes", &size_columns)? {
             Some(table) => {
-                let can_fragment = agglo_systems::fragment::scene_fragments(
-                    &sim.material(),
-                    sim.world().resource::<crate::scene::Physics>(),
-                );
+                // A rigid aggregate breaks into whole primaries: k stays a whole number.
+                let can_fragment = !rigid
+                    && agglo_systems::fragment::scene_fragments(
+                        &sim.material(),
+                        sim.world().resource::<crate::scene::Physics>(),
+                    );
                 let bins = scenario
                     .output
                     .size_bins

@@ -438,8 +438,6 @@ fn what_rigid_does_not_support_yet_is_refused_naming_the_field() {
         fixed.contains("time.core") && fixed.contains("event core"),
         "{fixed}"
     );
-    let fragments = refusal(json!({ "material": { "gamma": 1.0 } }));
-    assert!(fragments.contains("physics.fragmentation"), "{fragments}");
     let field = refusal(json!({ "field": { "gravity": [0, 0, -9.81] } }));
     assert!(
         field.contains("field") && field.contains("rigid"),
@@ -863,4 +861,140 @@ fn a_hundred_thousand_primary_particle_cluster_aggregate_has_what_the_docs_quote
     assert!((shape.filling_factor - 0.1270).abs() < 5e-5, "{shape:?}");
     let core = g.filling_factor_within(0.5 * shape.radius_of_gyration);
     assert!((core - 0.1528).abs() < 5e-5, "{core}");
+}
+
+/// A dimer formed at rest at the origin (bodies 0 and 1 head on along y at ±1 m/s, so
+/// 1 sits on top), then monomer 2 flying along −x at `speed` onto the upper primary,
+/// with fragmentation on (γ = 5 J/m²).
+fn dimer_hit_by_a_monomer(speed: f64) -> Scenario {
+    rigid(json!({
+        "cloud": {
+            "count": 3,
+            "bodies": [
+                { "position": [0, -0.003, 0], "velocity": [0, 1, 0] },
+                { "position": [0, 0.003, 0], "velocity": [0, -1, 0] },
+                { "position": [0.03, B, 0], "velocity": [-speed, 0, 0] }
+            ]
+        },
+        "material": { "gamma": 5.0 },
+        "time": { "end": 0.05 },
+        "physics": { "fragmentation": true }
+    }))
+}
+
+#[test]
+fn an_aggregate_that_absorbs_enough_breaks_into_its_primaries_with_the_ledgers_closing() {
+    // P04's balance for the sphere of the aggregate's volume, b_v = k^{1/3} a: it breaks
+    // into its k primaries when (1 + x)³ ≥ k, x = δK / (4π γ b_v²). Forming the dimer
+    // absorbs δK = ½ (m/2) (2 m/s)² = m (x = 0.08 < 2^{1/3} − 1 = 0.26: it holds); the
+    // monomer bonding to it at v absorbs δK = ½ (2m/3) v² = m v²/3, x = 0.0214 v²/(m²/s²),
+    // which reaches 3^{1/3} − 1 = 0.442 at v = 4.5 m/s: 10 m/s breaks the trimer, 2 m/s
+    // does not.
+    let kept = {
+        let mut sim = Simulation::new(&dimer_hit_by_a_monomer(2.0)).unwrap();
+        sim.run().unwrap();
+        sim
+    };
+    assert_eq!(kept.summary().counters.bonds, 2);
+    assert_eq!(kept.summary().counters.fragmentations, 0);
+    assert_eq!(kept.summary().aggregates.unwrap().count, 1);
+    assert_eq!(kept.ledger().fracture_energy, 0.0);
+
+    let s = dimer_hit_by_a_monomer(10.0);
+    let mut sim = Simulation::new(&s).unwrap();
+    let start = sim.bodies();
+    sim.run().unwrap();
+    let end = sim.bodies();
+    let summary = sim.summary();
+    assert_eq!(summary.counters.bonds, 2, "{:?}", summary.counters);
+    assert_eq!(summary.counters.fragmentations, 1);
+    assert_eq!(summary.counters.fragments_created, 3);
+    // Three aggregates of one, each its own primary, all with the trimer's velocity
+    // (the split moves nothing), in the places where they touched.
+    let aggregates = aggregate_shapes(sim.world());
+    assert_eq!(aggregates.len(), 3);
+    assert!(aggregates.iter().all(|a| a.primaries == 1));
+    assert_eq!(
+        aggregates.iter().map(|a| a.id).collect::<Vec<_>>(),
+        [0, 1, 2]
+    );
+    let v = end[0].velocity;
+    assert!(end.iter().all(|b| b.velocity == v));
+    assert!((v - DVec3::new(-10.0 / 3.0, 0.0, 0.0)).length() < 1e-12 * 10.0);
+    // Mass exact; momentum to rounding (1e-12 of Σ m|v|: three impacts' sums).
+    let mass: f64 = start.iter().map(|b| b.mass).sum();
+    assert_eq!(mass, end.iter().map(|b| b.mass).sum::<f64>());
+    let ((p0, scale), (p1, _)) = (momentum_and_scale(&start), momentum_and_scale(&end));
+    assert!((p1 - p0).length() <= 1e-12 * scale, "{p0} → {p1}");
+    // δZ = γ 4π b_v² (3^{1/3} − 1) with b_v = 3^{1/3} a, booked as fracture energy and
+    // taken from the heat: Σ m C (θ − θ0) = dissipation + reaction heat − δZ (1e-9:
+    // sums of temperatures of 300 K against rises of millikelvins).
+    let ledger = sim.ledger();
+    let b_v = 3f64.cbrt() * B;
+    let dz = 5.0 * 4.0 * std::f64::consts::PI * b_v * b_v * (3f64.cbrt() - 1.0);
+    assert!(
+        (ledger.fracture_energy / dz - 1.0).abs() < 1e-12,
+        "{:e} against {dz:e}",
+        ledger.fracture_energy
+    );
+    let lost = kinetic(&start) - kinetic(&end);
+    assert!((lost - ledger.impact_dissipation).abs() <= 1e-12 * kinetic(&start));
+    let heat: f64 = end
+        .iter()
+        .map(|b| b.mass * s.material.C * (b.temperature - 300.0))
+        .sum();
+    let booked = ledger.impact_dissipation + ledger.reaction_heat - ledger.fracture_energy;
+    assert!(
+        (heat - booked).abs() <= 1e-9 * ledger.impact_dissipation,
+        "heat {heat:e} J, booked {booked:e} J"
+    );
+    assert!(summary.invariant_violations.is_empty());
+    assert!(
+        summary.max_energy_error <= 1e-12,
+        "{}",
+        summary.max_energy_error
+    );
+}
+
+#[test]
+fn a_cluster_cluster_run_with_fragmentation_conserves_and_books_the_fracture_energy() {
+    // γ = 5e-3 J/m² on the 600-primary cloud: 1562 bonds and 698 aggregates broken into
+    // 1683 primaries (measured), so breaking is common and follows bonds closely.
+    let mut s = cluster_cluster(600, 0.4, 7);
+    s.material.gamma = Some(5e-3);
+    s.physics.fragmentation = true;
+    let mut sim = Simulation::new(&s).expect("builds");
+    let start = sim.bodies();
+    sim.run().expect("runs");
+    let end = sim.bodies();
+    let summary = sim.summary();
+    assert!(
+        summary.counters.fragmentations >= 100,
+        "{:?}",
+        summary.counters
+    );
+    assert_aggregates_are_rigid_and_connected(&sim);
+    let mass: f64 = start.iter().map(|b| b.mass).sum();
+    assert_eq!(mass, end.iter().map(|b| b.mass).sum::<f64>());
+    let ((p0, scale), (p1, _)) = (momentum_and_scale(&start), momentum_and_scale(&end));
+    assert!((p1 - p0).length() <= 1e-12 * scale, "{p0} → {p1}");
+    // Breaking moves no kinetic energy: what was lost is the impacts' dissipation, and
+    // the heat is dissipation + reaction heat − fracture energy (tolerances as in the
+    // run without fragmentation above).
+    let ledger = sim.ledger();
+    assert!(ledger.fracture_energy > 0.0);
+    let lost = kinetic(&start) - kinetic(&end);
+    assert!((lost - ledger.impact_dissipation).abs() <= 1e-12 * kinetic(&start));
+    let heat: f64 = end
+        .iter()
+        .map(|b| b.mass * s.material.C * (b.temperature - 300.0))
+        .sum();
+    let booked = ledger.impact_dissipation + ledger.reaction_heat - ledger.fracture_energy;
+    assert!(
+        (heat - booked).abs() <= 1e-9 * ledger.impact_dissipation,
+        "heat {heat:e} J, booked {booked:e} J"
+    );
+    assert!(summary.invariant_violations.is_empty());
+    assert!(summary.max_momentum_error <= 1e-12 && summary.max_energy_error <= 1e-12);
+    assert_eq!(summary.counters.overlap_violations, 0);
 }
