@@ -998,3 +998,31 @@ fn a_cluster_cluster_run_with_fragmentation_conserves_and_books_the_fracture_ene
     assert!(summary.max_momentum_error <= 1e-12 && summary.max_energy_error <= 1e-12);
     assert_eq!(summary.counters.overlap_violations, 0);
 }
+
+#[test]
+fn papers_best_case_in_rigid_mode_grows_what_the_docs_quote() {
+    // scenarios/paper2004_best_rigid.json (0.4 s): P04's best case, bonds joining rigid
+    // aggregates. docs/model.md §6.1 quotes this deterministic run (seed 2004).
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenarios/paper2004_best_rigid.json");
+    let s = Scenario::load(&path).expect("loads");
+    let mut sim = Simulation::new(&s).expect("builds");
+    sim.run().expect("runs");
+    let summary = sim.summary();
+    assert_eq!(
+        summary.final_bodies, 1000,
+        "primaries are never merged away"
+    );
+    assert_eq!(
+        (summary.counters.bonds, summary.counters.bounces),
+        (985, 423)
+    );
+    let aggregates = summary.aggregates.expect("aggregates");
+    assert_eq!((aggregates.count, aggregates.max_primaries), (15, 794));
+    let phi = aggregates.mean_filling_factor.expect("k ≥ 5 aggregates");
+    assert!((phi - 0.225).abs() < 5e-4, "{phi}");
+    let fractal = aggregates.fractal.expect("a fit");
+    assert!((fractal.dimension - 2.46).abs() < 5e-3, "{fractal:?}");
+    assert!(summary.invariant_violations.is_empty());
+    assert!(summary.max_momentum_error <= 1e-12 && summary.max_energy_error <= 1e-12);
+}
