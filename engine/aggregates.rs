@@ -78,6 +78,19 @@ pub fn spawn_singletons(world: &mut World) {
     world.insert_resource(RigidAggregates);
 }
 
+/// Each primary's aggregate id, in the order of the primaries' stable ids (the order of
+/// `Simulation::bodies()`); None when the scene is not rigid.
+pub fn aggregate_ids(world: &World) -> Option<Vec<u64>> {
+    world.get_resource::<RigidAggregates>()?;
+    let mut query = world.try_query::<(&ParticleId, &MemberOf)>()?;
+    let mut rows: Vec<(u64, u64)> = query
+        .iter(world)
+        .map(|(id, of)| (id.0, world.get::<Aggregate>(of.0).map_or(id.0, |a| a.id)))
+        .collect();
+    rows.sort_unstable_by_key(|r| r.0);
+    Some(rows.into_iter().map(|r| r.1).collect())
+}
+
 /// One aggregate's size and shape.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct AggregateShape {

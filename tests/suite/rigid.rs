@@ -1026,3 +1026,73 @@ fn papers_best_case_in_rigid_mode_grows_what_the_docs_quote() {
     assert!(summary.invariant_violations.is_empty());
     assert!(summary.max_momentum_error <= 1e-12 && summary.max_energy_error <= 1e-12);
 }
+
+#[test]
+fn a_rigid_recording_colours_each_primary_by_its_aggregate() {
+    use agglo::record::messages::{SINGLE_PRIMARY_RGB, aggregate_rgb};
+    use foxglove::Decode;
+    use foxglove::schemas::SceneUpdate;
+    use std::collections::BTreeMap;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("rigid.json");
+    // To t = 0.1 s: aggregates of up to 55 primaries and 11 primaries still alone.
+    std::fs::write(&scene, cluster_cluster(300, 0.1, 3).to_json()).unwrap();
+    let (mcap, last) = (dir.path().join("run.mcap"), dir.path().join("final.csv"));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_agglo"))
+        .args(["run", "-q"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&mcap)
+        .arg("--final-state")
+        .arg(&last)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Each primary's aggregate, from the final state's last column.
+    let text = std::fs::read_to_string(&last).unwrap();
+    let mut lines = text.lines();
+    assert!(lines.next().unwrap().ends_with(",aggregate"));
+    let of: BTreeMap<String, u64> = lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (
+                f[0].to_string(),
+                f[f.len() - 1].parse::<f64>().unwrap() as u64,
+            )
+        })
+        .collect();
+    let mut sizes: BTreeMap<u64, usize> = BTreeMap::new();
+    for id in of.values() {
+        *sizes.entry(*id).or_default() += 1;
+    }
+    assert!(sizes.values().any(|&k| k >= 2) && sizes.values().any(|&k| k == 1));
+    // The last /particles snapshot is the final state: every primary in its
+    // aggregate's colour, grey when alone.
+    let buf = std::fs::read(&mcap).unwrap();
+    let update = mcap::MessageStream::new(&buf)
+        .unwrap()
+        .map(|m| m.unwrap())
+        .filter(|m| m.channel.topic == "/particles")
+        .last()
+        .map(|m| SceneUpdate::decode(&m.data[..]).unwrap())
+        .expect("a snapshot");
+    assert_eq!(update.entities.len(), of.len());
+    let mut grey = 0;
+    for e in &update.entities {
+        let c = e.spheres[0].color.unwrap();
+        let aggregate = of[&e.id];
+        let k = sizes[&aggregate];
+        assert_eq!(
+            [c.r, c.g, c.b],
+            aggregate_rgb(aggregate, k),
+            "primary {}",
+            e.id
+        );
+        grey += usize::from(k == 1 && [c.r, c.g, c.b] == SINGLE_PRIMARY_RGB);
+    }
+    assert_eq!(grey, sizes.values().filter(|&&k| k == 1).count());
+}
