@@ -22,7 +22,7 @@ use glam::DVec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::components::{Mass, Particle, ParticleId, Velocity};
+use crate::components::{Mass, Particle, ParticleId, Radius, Velocity};
 
 /// A primary's aggregate (the relationship's source side).
 #[derive(Component, Debug, Clone, Copy, PartialEq, Eq)]
@@ -78,6 +78,19 @@ pub fn spawn_singletons(world: &mut World) {
     world.insert_resource(RigidAggregates);
 }
 
+/// Each primary's aggregate id, in the order of the primaries' stable ids (the order of
+/// `Simulation::bodies()`); None when the scene is not rigid.
+pub fn aggregate_ids(world: &World) -> Option<Vec<u64>> {
+    world.get_resource::<RigidAggregates>()?;
+    let mut query = world.try_query::<(&ParticleId, &MemberOf)>()?;
+    let mut rows: Vec<(u64, u64)> = query
+        .iter(world)
+        .map(|(id, of)| (id.0, world.get::<Aggregate>(of.0).map_or(id.0, |a| a.id)))
+        .collect();
+    rows.sort_unstable_by_key(|r| r.0);
+    Some(rows.into_iter().map(|r| r.1).collect())
+}
+
 /// One aggregate's size and shape.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct AggregateShape {
@@ -90,22 +103,43 @@ pub struct AggregateShape {
     /// Radius of gyration of the primaries' centres, mass-weighted,
     /// R_g² = Σ m_k |x_k − x_cm|² / M [m] (without the primaries' own extent; 0 for k = 1).
     pub radius_of_gyration: f64,
+    /// Radius of the sphere of the primaries' total volume, (Σ a_k³)^(1/3) [m].
+    pub volume_radius: f64,
+    /// Filling factor φ_c = Σ a_k³ / R_c³ [-]: the primaries' volume over the volume of
+    /// the sphere of the characteristic radius R_c = √(5/3) R_g, the radius of a
+    /// homogeneous sphere of that R_g (Mukai et al. 1992, A&A 262, 315; Kozasa, Blum &
+    /// Mukai 1992, A&A 263, 423, whose large ballistic particle–cluster aggregates reach
+    /// φ_c ≈ 0.15). 1 for an aggregate of one primary (the sphere itself).
+    pub filling_factor: f64,
 }
 
-/// The shape of an aggregate of the primaries `(mass [kg], offset [m])`.
-pub fn shape_of(id: u64, primaries: &[(f64, DVec3)]) -> AggregateShape {
+/// The ratio of the characteristic radius of an aggregate to its radius of gyration,
+/// R_c / R_g = √(5/3): a homogeneous sphere of radius R has R_g = √(3/5) R.
+pub const CHARACTERISTIC_OVER_GYRATION: f64 = 1.290_994_448_735_805_6;
+
+/// The shape of an aggregate of the primaries `(mass [kg], radius [m], offset [m])`.
+pub fn shape_of(id: u64, primaries: &[(f64, f64, DVec3)]) -> AggregateShape {
     let mass: f64 = primaries.iter().map(|p| p.0).sum();
-    let centre = primaries.iter().map(|p| p.0 * p.1).sum::<DVec3>() / mass;
+    let centre = primaries.iter().map(|p| p.0 * p.2).sum::<DVec3>() / mass;
     // Two passes (centre first): no cancellation between Σ m x² and M x_cm².
     let spread: f64 = primaries
         .iter()
-        .map(|p| p.0 * (p.1 - centre).length_squared())
+        .map(|p| p.0 * (p.2 - centre).length_squared())
         .sum();
+    let radius_of_gyration = (spread / mass).sqrt();
+    let volume: f64 = primaries.iter().map(|p| p.1.powi(3)).sum();
+    let filling_factor = if primaries.len() < 2 {
+        1.0
+    } else {
+        volume / (CHARACTERISTIC_OVER_GYRATION * radius_of_gyration).powi(3)
+    };
     AggregateShape {
         id,
         primaries: primaries.len(),
         mass,
-        radius_of_gyration: (spread / mass).sqrt(),
+        radius_of_gyration,
+        volume_radius: volume.cbrt(),
+        filling_factor,
     }
 }
 
@@ -114,20 +148,22 @@ pub fn aggregate_shapes(world: &World) -> Vec<AggregateShape> {
     if world.get_resource::<RigidAggregates>().is_none() {
         return Vec::new();
     }
-    let Some(mut primaries) = world.try_query::<(&ParticleId, &Mass, &Offset, &MemberOf)>() else {
+    let Some(mut primaries) =
+        world.try_query::<(&ParticleId, &Mass, &Radius, &Offset, &MemberOf)>()
+    else {
         return Vec::new();
     };
-    // (aggregate, primary id, mass, offset), sorted so that each aggregate's sums run in
-    // id order whatever order the query gives.
-    let mut rows: Vec<(Entity, u64, f64, DVec3)> = primaries
+    // (aggregate, primary id, mass, radius, offset), sorted so that each aggregate's sums
+    // run in id order whatever order the query gives.
+    let mut rows: Vec<(Entity, u64, f64, f64, DVec3)> = primaries
         .iter(world)
-        .map(|(id, m, o, of)| (of.0, id.0, m.0, o.0))
+        .map(|(id, m, r, o, of)| (of.0, id.0, m.0, r.0, o.0))
         .collect();
     rows.sort_by_key(|r| (r.0, r.1));
     let mut shapes = Vec::new();
-    let mut group: Vec<(f64, DVec3)> = Vec::new();
+    let mut group: Vec<(f64, f64, DVec3)> = Vec::new();
     for (i, row) in rows.iter().enumerate() {
-        group.push((row.2, row.3));
+        group.push((row.2, row.3, row.4));
         if rows.get(i + 1).is_none_or(|next| next.0 != row.0) {
             let id = world.get::<Aggregate>(row.0).map_or(row.1, |a| a.id);
             shapes.push(shape_of(id, &group));
@@ -223,6 +259,16 @@ pub fn fractal_fit(
 /// scenarios/bcca.json gives D_f = 1.85, without them 1.91.
 pub const FIT_MIN_PRIMARIES: usize = 5;
 
+/// The mean filling factor φ_c over the aggregates with k ≥ `min_primaries` (None if
+/// there are none).
+pub fn mean_filling_factor(shapes: &[AggregateShape], min_primaries: usize) -> Option<f64> {
+    let (sum, n) = shapes
+        .iter()
+        .filter(|s| s.primaries >= min_primaries)
+        .fold((0.0, 0usize), |(sum, n), s| (sum + s.filling_factor, n + 1));
+    (n > 0).then(|| sum / n as f64)
+}
+
 /// What the summary says of a rigid run's aggregates.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct AggregateSummary {
@@ -234,6 +280,10 @@ pub struct AggregateSummary {
     pub max_primaries: usize,
     /// Mass-weighted mean radius of gyration [m].
     pub mean_radius_of_gyration: f64,
+    /// Mean filling factor φ_c ([`AggregateShape::filling_factor`]) over the aggregates
+    /// with k ≥ [`FIT_MIN_PRIMARIES`], each weighing the same, as in the fractal fit
+    /// (None when there are none: smaller aggregates' φ_c is set by geometry).
+    pub mean_filling_factor: Option<f64>,
     /// N = k_f (R_g/a)^D_f over the aggregates with k ≥ [`FIT_MIN_PRIMARIES`], a = the
     /// primary radius b0 (None with fewer than two such aggregates).
     pub fractal: Option<FractalFit>,
@@ -256,6 +306,7 @@ impl AggregateSummary {
                 .map(|s| s.mass * s.radius_of_gyration)
                 .sum::<f64>()
                 / total_mass,
+            mean_filling_factor: mean_filling_factor(shapes, FIT_MIN_PRIMARIES),
             fractal: fractal_fit(shapes, primary_radius, FIT_MIN_PRIMARIES),
         })
     }

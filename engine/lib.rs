@@ -45,6 +45,7 @@ pub mod issues;
 pub mod laws;
 pub mod observables;
 pub mod params;
+pub mod particle_cluster;
 pub mod readable;
 pub mod resources;
 pub mod restart;

@@ -428,12 +428,7 @@ impl Physics {
     /// What a `rigid` scene asks for that `rigid` does not support yet, each named by its
     /// field (docs/model.md §6.1); empty for `coalesce`. `has_field`: the scene has a
     /// `field` section (gravity or drag).
-    pub fn rigid_issues(
-        &self,
-        time: &TimeControl,
-        material: &Material,
-        has_field: bool,
-    ) -> Vec<ValidationIssue> {
+    pub fn rigid_issues(&self, time: &TimeControl, has_field: bool) -> Vec<ValidationIssue> {
         let mut issues = Vec::new();
         if self.merge_mode != MergeMode::Rigid {
             return issues;
@@ -460,13 +455,6 @@ impl Physics {
             refuse(
                 "physics.merging",
                 "needs physics.merging = true (a bond joins two aggregates)",
-            );
-        }
-        if self.fragmentation && material.gamma.is_some() {
-            refuse(
-                "physics.fragmentation",
-                "does not fragment aggregates yet: set physics.fragmentation = false or \
-                 material.gamma = null",
             );
         }
         if has_field {

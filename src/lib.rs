@@ -55,7 +55,7 @@ extern crate self as agglo;
 // The engine's modules, under the paths users and drivers know them by.
 pub use agglo_engine::{
     aggregates, bodies, carried, cloud, components, core_only, error, hooks, laws, observables,
-    params, readable, resources, scene, schedule, setup, totals,
+    params, particle_cluster, readable, resources, scene, schedule, setup, totals,
 };
 /// The built-in physics plugins (the `agglo-systems` crate).
 pub use agglo_systems as systems;

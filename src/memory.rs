@@ -24,6 +24,15 @@ pub const BYTES_PER_BODY: f64 = 650.0;
 /// 1366 MiB against 659 MB before the world's memory fixes).
 pub const RECORDING_BYTES_PER_BODY: f64 = 800.0;
 
+/// Peak resident bytes per primary that a rigid scene (`physics.merge_mode = "rigid"`,
+/// docs/model.md §6.1) adds [B]: an aggregate entity per primary at t = 0 (its id, mass,
+/// velocity and member list) and each primary's aggregate and offset, which move every
+/// body to a new archetype (the old table keeps its capacity). Measured on the
+/// scenarios/bcca.json cloud (`/usr/bin/time` peak RSS, rigid less coalesce): +590 B per
+/// body at N = 5e4 and 2e5 just after t = 0, +700 B over a run to t = 0.3 s at 5e4 (the
+/// coalesce run's merged bodies leave); rounded up.
+pub const RIGID_BYTES_PER_BODY: f64 = 750.0;
+
 /// Resident bytes of the process without bodies (5.7 MB measured for two bodies) plus
 /// the recording's chunk buffers (1 MiB uncompressed, compressed copy) [B].
 pub const BASE_BYTES: f64 = 16e6;
@@ -51,12 +60,14 @@ impl MemoryEstimate {
     /// The estimate for `scenario` on this machine, recorded to MCAP or not.
     pub fn of_run(scenario: &Scenario, recording: bool) -> Self {
         let bodies = scenario.cloud.count.max(scenario.cloud.bodies.len());
+        let rigid = scenario.physics.merge_mode == crate::scene::MergeMode::Rigid;
         let per_body = BYTES_PER_BODY
             + if recording {
                 RECORDING_BYTES_PER_BODY
             } else {
                 0.0
-            };
+            }
+            + if rigid { RIGID_BYTES_PER_BODY } else { 0.0 };
         Self {
             bodies,
             bytes: BASE_BYTES + per_body * bodies as f64,

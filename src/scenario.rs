@@ -292,8 +292,7 @@ impl Scenario {
                 self.diagnostics.issues(),
                 self.output.issues(&self.time),
                 self.field.issues(),
-                self.physics
-                    .rigid_issues(&self.time, &self.material, !self.field.is_none()),
+                self.physics.rigid_issues(&self.time, !self.field.is_none()),
             ]
             .concat(),
         };

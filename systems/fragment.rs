@@ -22,7 +22,7 @@ use bevy_ecs::prelude::*;
 use bevy_ecs::query::QueryData;
 
 use agglo_engine::core_only::SimBuilderCore;
-use agglo_engine::scene::{Material, Physics};
+use agglo_engine::scene::{Material, MergeMode, Physics};
 use agglo_engine::schedule::{SimBuilder, SimPlugin, StepSystems};
 
 use agglo_engine::params::{RunBooks, SceneConstants};
@@ -268,6 +268,12 @@ impl SimPlugin for FragmentPlugin {
     fn build(&self, sim: &mut SimBuilder) {
         match fragmentation_off(sim.resource::<Material>(), sim.resource::<Physics>()) {
             Some(why) => sim.leave_out(format!("fragmentation off: {why}")),
+            // Rigid scenes break aggregates into their primaries (docs/model.md §6.1).
+            None if sim.resource::<Physics>().merge_mode == MergeMode::Rigid => sim
+                .add_core_systems(
+                    StepSystems::Fragment,
+                    crate::fragment_rigid::fragment_aggregates,
+                ),
             None => sim.add_core_systems(StepSystems::Fragment, fragment_bodies),
         };
     }

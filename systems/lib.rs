@@ -24,6 +24,7 @@ pub mod diagnostics;
 pub mod drift;
 pub mod events;
 pub mod fragment;
+pub mod fragment_rigid;
 pub mod impact;
 pub mod merge;
 pub mod time_step;

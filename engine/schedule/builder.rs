@@ -514,6 +514,20 @@ impl SimBuilder {
                 ));
             }
             let Some(add) = self.outcome_applier else {
+                if self
+                    .world
+                    .contains_resource::<crate::aggregates::RigidAggregates>()
+                {
+                    // The rigid impact system solves and applies each contact at once
+                    // (a bond moves whole aggregates), so no outcome can wait for a hook.
+                    return Err(SimError::Schedule(
+                        "impact-outcome systems are not supported in a rigid scene \
+                         (physics.merge_mode = \"rigid\", docs/model.md §6.1): use \
+                         physics.merge_mode = \"coalesce\", or observe the impacts without \
+                         changing their outcome"
+                            .into(),
+                    ));
+                }
                 return Err(SimError::Schedule(
                     "impact-outcome systems were added but no plugin applies impact outcomes \
                      (add the impact plugin)"

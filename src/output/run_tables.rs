@@ -20,7 +20,7 @@ use crate::schedule::Simulation;
 use super::collisions::{self, CollisionLog};
 use super::sampling::{SampleSchedule, Sampler};
 use super::series::{Pending, SERIES_COLUMNS, series_row};
-use super::sizes::{self, SIZES_COLUMNS, SizeBins};
+use super::sizes::{self, RIGID_SIZES_COLUMNS, SIZES_COLUMNS, SizeBins};
 use super::snapshots::SNAPSHOT_COLUMNS;
 use super::table::{Cell, Column, TableWriter, float};
 
@@ -62,7 +62,8 @@ impl TablePaths {
 pub struct RunTables {
     sampler: Sampler,
     series: Option<TableWriter>,
-    sizes: Option<(TableWriter, SizeBins)>,
+    /// The size table, its bins, and whether it counts rigid aggregates.
+    sizes: Option<(TableWriter, SizeBins, bool)>,
     snapshots: Option<TableWriter>,
     collisions: Option<CollisionLog>,
     samples: u64,
@@ -102,17 +103,30 @@ impl RunTables {
             .chain(carried.iter().map(|name| carried_column(name)))
             .collect();
         let snapshots = create(&paths.snapshots, "snapshots", &snapshot_columns)?;
-        let sizes = match create(&paths.sizes, "sizes", SIZES_COLUMNS)? {
+        // A rigid scene's size table counts aggregates and adds their shape; a coalesce
+        // scene's keeps its columns (and bytes).
+        let rigid = sim
+            .world()
+            .get_resource::<crate::aggregates::RigidAggregates>()
+            .is_some();
+        let size_columns: Vec<Column> = SIZES_COLUMNS
+            .iter()
+            .chain(if rigid { RIGID_SIZES_COLUMNS } else { &[] })
+            .copied()
+            .collect();
+        let sizes = match create(&paths.sizes, "sizes", &size_columns)? {
             Some(table) => {
-                let can_fragment = agglo_systems::fragment::scene_fragments(
-                    &sim.material(),
-                    sim.world().resource::<crate::scene::Physics>(),
-                );
+                // A rigid aggregate breaks into whole primaries: k stays a whole number.
+                let can_fragment = !rigid
+                    && agglo_systems::fragment::scene_fragments(
+                        &sim.material(),
+                        sim.world().resource::<crate::scene::Physics>(),
+                    );
                 let bins = scenario
                     .output
                     .size_bins
                     .resolve(&sim.bodies(), can_fragment);
-                Some((table, bins))
+                Some((table, bins, rigid))
             }
             None => None,
         };
@@ -189,12 +203,22 @@ impl RunTables {
                 .row(&series_row(sim, &bodies, pending))
                 .context("writing the time series")?;
         }
-        if let Some((table, bins)) = &mut self.sizes {
+        if let Some((table, bins, rigid)) = &mut self.sizes {
             let by = sizes::label(*bins);
-            for row in sizes::size_rows(*bins, &bodies, sim.primary().radius) {
-                table
-                    .row(&sizes::cells(t, by, row))
-                    .context("writing the size distribution")?;
+            let b0 = sim.primary().radius;
+            if *rigid {
+                let shapes = crate::aggregates::aggregate_shapes(sim.world());
+                for row in sizes::aggregate_size_rows(*bins, &shapes, b0) {
+                    table
+                        .row(&sizes::aggregate_cells(t, by, row))
+                        .context("writing the size distribution")?;
+                }
+            } else {
+                for row in sizes::size_rows(*bins, &bodies, b0) {
+                    table
+                        .row(&sizes::cells(t, by, row))
+                        .context("writing the size distribution")?;
+                }
             }
         }
         if let Some(table) = &mut self.snapshots {

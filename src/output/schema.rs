@@ -238,6 +238,11 @@ pub const SUMMARY_KEYS: &[Key] = &[
         "rigid: mass-weighted mean R_g of the primaries' centres",
     ),
     key(
+        "aggregates.mean_filling_factor",
+        "-",
+        "rigid: mean filling factor Σ a³ / R_c³, R_c = √(5/3) R_g, over the aggregates with k ≥ 5 (null: none)",
+    ),
+    key(
         "aggregates.fractal.dimension",
         "-",
         "rigid: D_f of N = k_f (R_g/a)^D_f, 1 / the slope of ln(R_g/a) on ln k over the aggregates with k ≥ 5 (null: fewer than two)",
@@ -275,7 +280,7 @@ pub fn tables() -> Vec<(&'static str, &'static str, &'static [Column])> {
         ),
         (
             "--sizes",
-            "one row per sample and non-empty size bin",
+            "one row per sample and non-empty size bin; in a rigid scene (physics.merge_mode) the bins count aggregates (by k, or by the radius (Σ a³)^(1/3) of their volume), and two columns follow: `radius_of_gyration` [m], the bin's mean R_g, and `filling_factor` [-], its mean Σ a³ / R_c³ with R_c = √(5/3) R_g (1 for one primary)",
             SIZES_COLUMNS,
         ),
         (

@@ -66,9 +66,41 @@ pub fn drawable(b: &BodyState) -> bool {
 }
 
 /// The `/particles` entity of body `b`: a sphere of diameter 2b at its centre, coloured
-/// by temperature, with the body's stable id as the entity id.
+/// by temperature, with the body's stable id as the entity id ([`sphere_entity`]).
 pub fn body_entity(b: &BodyState, colours: &ColourScale, stamp: Timestamp) -> SceneEntity {
-    let [r, g, bl] = colours.rgb(b.temperature);
+    sphere_entity(b, colours.rgb(b.temperature), stamp)
+}
+
+/// The grey of a primary that is an aggregate of one (rigid scenes).
+pub const SINGLE_PRIMARY_RGB: [f64; 3] = [0.6, 0.6, 0.6];
+
+/// The colour of the primaries of aggregate `id` of `primaries` primaries (rigid scenes,
+/// docs/model.md §6.1): grey for a primary alone; otherwise a hue of its own, the
+/// fractional part of id × the golden ratio's 0.618…, so that aggregates of nearby ids
+/// get well-separated hues and an aggregate keeps its colour while it grows (its id
+/// is its smallest primary's).
+pub fn aggregate_rgb(id: u64, primaries: usize) -> [f64; 3] {
+    if primaries < 2 {
+        return SINGLE_PRIMARY_RGB;
+    }
+    let hue = (id as f64 * 0.618_033_988_749_894_9).fract() * 6.0;
+    // HSV with saturation 0.8 and value 0.95 to RGB.
+    let (s, v) = (0.8, 0.95);
+    let sector = (hue.floor() as usize).min(5);
+    let f = hue - sector as f64;
+    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
+    match sector {
+        0 => [v, t, p],
+        1 => [q, v, p],
+        2 => [p, v, t],
+        3 => [p, q, v],
+        4 => [t, p, v],
+        _ => [v, p, q],
+    }
+}
+
+/// The `/particles` entity of body `b` coloured `rgb` (components in [0, 1]).
+pub fn sphere_entity(b: &BodyState, [r, g, bl]: [f64; 3], stamp: Timestamp) -> SceneEntity {
     let diameter = 2.0 * b.radius;
     SceneEntity {
         timestamp: Some(stamp),

@@ -22,7 +22,8 @@
 //!
 //! **Colour.** Spheres are coloured by temperature on a logarithmic scale
 //! ([`ColourScale`]): blue at θ_lo = min(θ0, θ_s), through cyan, green and yellow,
-//! to red at 10³ θ_lo and above.
+//! to red at 10³ θ_lo and above. In a rigid scene (docs/model.md §6.1) the primaries are
+//! coloured by aggregate instead ([`messages::aggregate_rgb`]).
 //!
 //! The writer lives in [`writer`], the reader behind `agglo inspect` and
 //! `agglo run --from` in [`inspect`], and the Foxglove layout fitted to a recording's

@@ -104,6 +104,9 @@ enum Job {
         header: MessageHeader,
         stamp: Timestamp,
         bodies: Vec<BodyState>,
+        /// In a rigid scene, each body's aggregate id (the same order): the primaries
+        /// are coloured by aggregate instead of by temperature.
+        aggregates: Option<Vec<u64>>,
     },
     /// A metadata record (the outcome, written last).
     Metadata(Metadata),
@@ -135,6 +138,7 @@ impl Sink for McapSink {
                 header,
                 stamp,
                 bodies,
+                aggregates,
             } => {
                 // Bodies with a non-finite centre or size cannot be drawn: left out (the
                 // simulation thread reports them on /events).
@@ -144,10 +148,13 @@ impl Sink for McapSink {
                 let deletions: Vec<SceneEntityDeletion> = sorted_difference(&self.shown, &ids)
                     .map(|id| messages::deletion_of(id, stamp))
                     .collect();
-                let entities: Vec<SceneEntity> = drawable
-                    .iter()
-                    .map(|b| messages::body_entity(b, &self.colours, stamp))
-                    .collect();
+                let entities: Vec<SceneEntity> = match aggregates {
+                    None => drawable
+                        .iter()
+                        .map(|b| messages::body_entity(b, &self.colours, stamp))
+                        .collect(),
+                    Some(of) => aggregate_entities(&bodies, &of, stamp),
+                };
                 self.deletions += deletions.len() as u64;
                 let update = SceneUpdate {
                     deletions,
@@ -178,6 +185,21 @@ impl Sink for McapSink {
             file.metadata().map(|m| m.len()).unwrap_or(0),
         ))
     }
+}
+
+/// The drawable primaries of a rigid scene, each coloured by its aggregate
+/// ([`messages::aggregate_rgb`]); `of[i]` is `bodies[i]`'s aggregate id.
+fn aggregate_entities(bodies: &[BodyState], of: &[u64], stamp: Timestamp) -> Vec<SceneEntity> {
+    let mut sizes: BTreeMap<u64, usize> = BTreeMap::new();
+    for &id in of {
+        *sizes.entry(id).or_default() += 1;
+    }
+    bodies
+        .iter()
+        .zip(of)
+        .filter(|(b, _)| messages::drawable(b))
+        .map(|(b, id)| messages::sphere_entity(b, messages::aggregate_rgb(*id, sizes[id]), stamp))
+        .collect()
 }
 
 impl Recorder {
@@ -422,10 +444,12 @@ impl Recorder {
             messages::skipped_bodies_message(&skipped)
         });
         let header = self.header(self.channels.particles, self.sampling.log_time(t));
+        let aggregates = crate::aggregates::aggregate_ids(sim.world());
         self.out.send(Job::Particles {
             header,
             stamp,
             bodies,
+            aggregates,
         })?;
 
         let initial = *self

@@ -338,6 +338,9 @@ fn ten_thousand_primaries_grow_to_a_mean_of_a_hundred_with_an_open_fractal_dimen
     assert!((fractal.dimension - 1.87).abs() < 0.005, "{fractal:?}");
     assert!((fractal.dimension_se - 0.04).abs() < 0.005, "{fractal:?}");
     assert!((fractal.prefactor - 1.36).abs() < 0.005, "{fractal:?}");
+    // The mean filling factor Σa³/R_c³ of its aggregates of k ≥ 5 (docs/model.md §6.1).
+    let phi = summary.mean_filling_factor.expect("aggregates of k ≥ 5");
+    assert!((phi - 0.0993).abs() < 5e-5, "{phi}");
 }
 
 #[test]
@@ -435,8 +438,6 @@ fn what_rigid_does_not_support_yet_is_refused_naming_the_field() {
         fixed.contains("time.core") && fixed.contains("event core"),
         "{fixed}"
     );
-    let fragments = refusal(json!({ "material": { "gamma": 1.0 } }));
-    assert!(fragments.contains("physics.fragmentation"), "{fragments}");
     let field = refusal(json!({ "field": { "gravity": [0, 0, -9.81] } }));
     assert!(
         field.contains("field") && field.contains("rigid"),
@@ -582,4 +583,516 @@ fn without_bonds_a_rigid_run_is_the_coalesce_run_bit_for_bit() {
     assert!(coalesce.1.bounces > 1000, "{:?}", coalesce.1);
     assert_eq!(coalesce.1.bonds, 0);
     assert!(coalesce == rigid, "{:?}\n{:?}", coalesce.1, rigid.1);
+}
+
+/// Each aggregate's radius of gyration from the final state alone: its primaries (by the
+/// `aggregate` column) unwrapped across the periodic boundary by walking its touching
+/// pairs (each step the minimum image of a separation of 2a, far below half the box),
+/// then R_g of the centres, mass-weighted. Sorted by aggregate id: (id, k, R_g).
+fn radii_of_gyration_from_the_final_state(sim: &Simulation) -> Vec<(u64, usize, f64)> {
+    let bodies = sim.bodies();
+    let carried = sim.carried();
+    let column = carried.names.iter().position(|n| n == "aggregate").unwrap();
+    let of: Vec<u64> = carried
+        .rows
+        .iter()
+        .map(|r| r.1[column].unwrap() as u64)
+        .collect();
+    let side = 2.0 * sim.world().resource::<BoxGeometry>().half_width;
+    let image = |d: DVec3| d - side * (d / side).round();
+    let mut ids: Vec<u64> = of.clone();
+    ids.sort_unstable();
+    ids.dedup();
+    ids.into_iter()
+        .map(|id| {
+            let members: Vec<usize> = (0..bodies.len()).filter(|&i| of[i] == id).collect();
+            let mut unwrapped: Vec<Option<DVec3>> = vec![None; members.len()];
+            unwrapped[0] = Some(bodies[members[0]].position);
+            let mut queue = vec![0];
+            while let Some(p) = queue.pop() {
+                for q in 0..members.len() {
+                    let (a, b) = (&bodies[members[p]], &bodies[members[q]]);
+                    let d = image(b.position - a.position);
+                    if unwrapped[q].is_none() && d.length() <= (a.radius + b.radius) * (1.0 + 1e-9)
+                    {
+                        unwrapped[q] = Some(unwrapped[p].unwrap() + d);
+                        queue.push(q);
+                    }
+                }
+            }
+            let x: Vec<(f64, DVec3)> = members
+                .iter()
+                .zip(&unwrapped)
+                .map(|(&i, u)| (bodies[i].mass, u.expect("connected")))
+                .collect();
+            let mass: f64 = x.iter().map(|p| p.0).sum();
+            let centre = x.iter().map(|p| p.0 * p.1).sum::<DVec3>() / mass;
+            let spread: f64 = x
+                .iter()
+                .map(|p| p.0 * (p.1 - centre).length_squared())
+                .sum();
+            (id, members.len(), (spread / mass).sqrt())
+        })
+        .collect()
+}
+
+#[test]
+fn the_size_table_of_a_rigid_scene_counts_aggregates_with_their_shape() {
+    use agglo::output::table::read_table;
+    use agglo::output::{RunTables, SampleSchedule, TablePaths};
+    let s = cluster_cluster(300, 0.3, 3);
+    let dir = tempfile::tempdir().unwrap();
+    let paths = TablePaths {
+        sizes: Some(dir.path().join("sizes.csv")),
+        sampling: Some(SampleSchedule::Steps { every: 50 }),
+        ..TablePaths::default()
+    };
+    let mut sim = Simulation::new(&s).unwrap();
+    let mut tables = RunTables::open(&paths, &s, &sim).unwrap().unwrap();
+    sim.run_with(|sim| {
+        tables.observe(sim).unwrap();
+        std::ops::ControlFlow::Continue(())
+    })
+    .unwrap();
+    tables.finish(&sim).unwrap();
+    let table = read_table(&dir.path().join("sizes.csv")).unwrap();
+    let (t, bin, count) = (
+        table.floats("t").unwrap(),
+        table.ints("bin").unwrap(),
+        table.ints("count").unwrap(),
+    );
+    let (r_g, phi) = (
+        table.floats("radius_of_gyration").unwrap(),
+        table.floats("filling_factor").unwrap(),
+    );
+    let a = sim.primary().radius;
+    let mut samples = t.clone();
+    samples.dedup();
+    assert!(samples.len() >= 3, "{samples:?}");
+    for &ts in &samples {
+        let rows: Vec<usize> = (0..t.len()).filter(|&k| t[k] == ts).collect();
+        // Bins by k: every primary in exactly one aggregate.
+        let primaries: i64 = rows.iter().map(|&k| bin[k] * count[k]).sum();
+        assert_eq!(primaries, 300, "t = {ts}: Σ k n_k = N");
+        for &k in &rows {
+            // Closed forms (centres only): a monomer's R_g is 0 and it fills itself; a
+            // dimer's centres sit a from their middle, R_g = a, φ = 2a³/(√(5/3) a)³; a
+            // trimer lies between the triangle (R_g = 2a/√3) and the line (2a·√(2/3)).
+            let rel = 1e-12; // rounding of the offsets, sums of a few terms
+            match bin[k] {
+                1 => assert!(
+                    r_g[k] == 0.0 && phi[k] == 1.0,
+                    "t = {ts}: {} {}",
+                    r_g[k],
+                    phi[k]
+                ),
+                2 => {
+                    assert!((r_g[k] / a - 1.0).abs() < rel, "dimer R_g {}", r_g[k] / a);
+                    let expected = 2.0 / (5.0f64 / 3.0).powf(1.5);
+                    assert!(
+                        (phi[k] / expected - 1.0).abs() < 1e-11,
+                        "dimer φ {}",
+                        phi[k]
+                    );
+                }
+                3 => {
+                    let (lo, hi) = (2.0 / 3f64.sqrt(), 2.0 * (2.0f64 / 3.0).sqrt());
+                    assert!(
+                        r_g[k] / a > lo * (1.0 - rel) && r_g[k] / a < hi * (1.0 + rel),
+                        "trimer R_g {}",
+                        r_g[k] / a
+                    );
+                }
+                _ => assert!(phi[k] > 0.0 && phi[k] < 1.0, "φ = {}", phi[k]),
+            }
+        }
+    }
+    // The last sample against the final state unwrapped on its own: the bins' counts
+    // and mean R_g (relative 1e-9: positions are wrapped, offsets are not).
+    let last = *samples.last().unwrap();
+    let independent = radii_of_gyration_from_the_final_state(&sim);
+    let summary = sim.summary().aggregates.unwrap();
+    let rows: Vec<usize> = (0..t.len()).filter(|&k| t[k] == last).collect();
+    assert_eq!(
+        rows.iter().map(|&k| count[k]).sum::<i64>() as usize,
+        summary.count
+    );
+    assert_eq!(independent.len(), summary.count);
+    for &k in &rows {
+        let of_k: Vec<f64> = independent
+            .iter()
+            .filter(|x| x.1 as i64 == bin[k])
+            .map(|x| x.2)
+            .collect();
+        assert_eq!(of_k.len() as i64, count[k], "k = {}", bin[k]);
+        let mean = of_k.iter().sum::<f64>() / of_k.len() as f64;
+        assert!(
+            (r_g[k] - mean).abs() <= 1e-9 * a,
+            "k = {}: table {} against {mean}",
+            bin[k],
+            r_g[k]
+        );
+    }
+}
+
+#[test]
+fn a_rigid_scene_with_outcome_hooks_is_refused_naming_the_merge_mode() {
+    use agglo::hooks::PendingImpacts;
+    fn hook(_pending: agglo::bevy_ecs::prelude::ResMut<PendingImpacts>) {}
+    let mut builder = Simulation::builder(&dimer_and_monomer(1.0)).unwrap();
+    builder
+        .add_default_plugins()
+        .add_impact_outcome_systems(hook);
+    let err = builder.build().err().expect("refused").to_string();
+    assert!(
+        err.contains("physics.merge_mode")
+            && err.contains("rigid")
+            && !err.contains("add the impact plugin"),
+        "{err}"
+    );
+}
+
+#[test]
+fn validate_counts_the_aggregates_of_a_rigid_scene_in_its_memory_estimate() {
+    use agglo::memory::{MemoryEstimate, RIGID_BYTES_PER_BODY};
+    let rigid_scene = cluster_cluster(1000, 0.1, 1);
+    let mut coalesce = rigid_scene.clone();
+    coalesce.physics.merge_mode = agglo::scene::MergeMode::Coalesce;
+    let (r, c) = (
+        MemoryEstimate::of(&rigid_scene),
+        MemoryEstimate::of(&coalesce),
+    );
+    assert_eq!(r.bytes - c.bytes, 1000.0 * RIGID_BYTES_PER_BODY);
+}
+
+/// Ballistic particle–cluster aggregation (agglo::particle_cluster): every monomer
+/// after the seed touches an earlier primary where it stopped and overlaps none; the
+/// same seed grows the same aggregate bit for bit. O(N²) here: 2000 primaries.
+#[test]
+fn particle_cluster_monomers_stick_where_they_first_touch() {
+    use agglo::particle_cluster::grow;
+    let a = 1e-6;
+    let g = grow(2000, a, 7);
+    assert_eq!(g, grow(2000, a, 7));
+    assert_eq!(g.centres.len(), 2000);
+    assert_eq!(g.fired, 2000 - 1 + g.missed);
+    assert!(g.missed > 0, "the lines are drawn wider than the aggregate");
+    for (k, x) in g.centres.iter().enumerate().skip(1) {
+        let closest = g.centres[..k]
+            .iter()
+            .map(|y| (*x - *y).length())
+            .fold(f64::INFINITY, f64::min);
+        // It stopped at first touch: 2a from a primary, to the rounding of a line
+        // point a few tens of a from the origin (1e-12 relative).
+        assert!(
+            (closest / (2.0 * a) - 1.0).abs() < 1e-12,
+            "primary {k}: nearest earlier centre at {} a",
+            closest / a
+        );
+        // Later arrivals never overlap it either.
+        for y in &g.centres[k + 1..] {
+            assert!((*x - *y).length() >= 2.0 * a * (1.0 - 1e-12));
+        }
+    }
+    // The R_g kept during the growth is the final aggregate's (one pass against two).
+    let rg = *g.radius_of_gyration.last().unwrap();
+    assert!((rg / g.shape().radius_of_gyration - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn particle_cluster_aggregates_are_compact_with_the_known_filling_factor() {
+    use agglo::particle_cluster::grow;
+    // Four aggregates of 10⁴ primaries (≈ 0.2 s each in the debug profile). Seeds 1–8
+    // gave D_f over the last decade of growth (R_g against k for k = 10³..10⁴, one
+    // aggregate) 2.98, 2.94, 2.89, 2.88, 2.99, 2.84, 2.86, 3.22 (mean 2.95, spread
+    // 0.12), and over k = 10..10² 2.68, 2.21, 2.83, …: the local dimension rises to 3,
+    // the dimension of ballistic particle–cluster aggregates (Meakin 1984; Kozasa, Blum
+    // & Mukai 1992, A&A 263, 423). The mean of four is within 0.06 (one SE) of the
+    // mean of eight; the band 2.8–3.15 is 3 ± 2.5 SE, a little wider above.
+    let mut d_f = Vec::new();
+    let mut early = Vec::new();
+    let mut filling = Vec::new();
+    let mut core = Vec::new();
+    for seed in 1..=4 {
+        let g = grow(10_000, 1.0, seed);
+        let fit = |from, to| {
+            fractal_fit(&g.history(from, to), 1.0, from)
+                .expect("a fit")
+                .dimension
+        };
+        d_f.push(fit(1000, 10_000));
+        early.push(fit(10, 100));
+        let shape = g.shape();
+        filling.push(shape.filling_factor);
+        core.push(g.filling_factor_within(0.5 * shape.radius_of_gyration));
+    }
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+    assert!((2.8..=3.15).contains(&mean(&d_f)), "D_f {d_f:?}");
+    assert!(mean(&early) < mean(&d_f), "{early:?} then {d_f:?}");
+    // The filling factor Σa³/R_c³ with R_c = √(5/3) R_g, the measure of Kozasa, Blum &
+    // Mukai (1992), whose large BPCA aggregates have porosity 0.85–0.87, φ ≈ 0.13–0.15.
+    // Measured: 0.127, 0.135, 0.131, 0.134 (seeds 5–8: 0.137, 0.131, 0.134, 0.123).
+    // The band 0.12–0.16 is the literature's range widened by the seed spread (0.005).
+    assert!(
+        filling.iter().all(|f| (0.12..=0.16).contains(f)),
+        "{filling:?}"
+    );
+    // Inside 0.5 R_g about the centre of mass (primaries cut by the sphere counted by
+    // their exact lens): 0.183, 0.183, 0.181, 0.184 — denser than the ≈ 0.15 the issue
+    // quotes, and falling with size (2000 primaries: 0.20–0.22; 10⁵: 0.153, the ignored
+    // test below); the band 0.17–0.20 is the measured spread of seeds 1–8
+    // (0.181–0.192) with a margin of half of it.
+    assert!(core.iter().all(|f| (0.17..=0.20).contains(f)), "{core:?}");
+}
+
+#[test]
+#[ignore = "10⁵ primaries, ≈ 11 s (debug profile): cargo test --test suite rigid -- --ignored"]
+fn a_hundred_thousand_primary_particle_cluster_aggregate_has_what_the_docs_quote() {
+    use agglo::particle_cluster::grow;
+    // docs/aggregates.md quotes this deterministic run (seed 1): 178 683 monomers fired
+    // for 10⁵ primaries; D_f 2.98 over k = 10⁴..10⁵; filling factor 0.127 (R_c
+    // measure) and 0.153 inside 0.5 R_g — the ≈ 0.15 of large BPCA aggregates.
+    let g = grow(100_000, 1.0, 1);
+    assert_eq!(g.fired, 178_683);
+    let fit = fractal_fit(&g.history(10_000, 100_000), 1.0, 10_000).unwrap();
+    assert!((fit.dimension - 2.982).abs() < 5e-4, "{fit:?}");
+    let shape = g.shape();
+    assert!((shape.radius_of_gyration - 71.53).abs() < 5e-3, "{shape:?}");
+    assert!((shape.filling_factor - 0.1270).abs() < 5e-5, "{shape:?}");
+    let core = g.filling_factor_within(0.5 * shape.radius_of_gyration);
+    assert!((core - 0.1528).abs() < 5e-5, "{core}");
+}
+
+/// A dimer formed at rest at the origin (bodies 0 and 1 head on along y at ±1 m/s, so
+/// 1 sits on top), then monomer 2 flying along −x at `speed` onto the upper primary,
+/// with fragmentation on (γ = 5 J/m²).
+fn dimer_hit_by_a_monomer(speed: f64) -> Scenario {
+    rigid(json!({
+        "cloud": {
+            "count": 3,
+            "bodies": [
+                { "position": [0, -0.003, 0], "velocity": [0, 1, 0] },
+                { "position": [0, 0.003, 0], "velocity": [0, -1, 0] },
+                { "position": [0.03, B, 0], "velocity": [-speed, 0, 0] }
+            ]
+        },
+        "material": { "gamma": 5.0 },
+        "time": { "end": 0.05 },
+        "physics": { "fragmentation": true }
+    }))
+}
+
+#[test]
+fn an_aggregate_that_absorbs_enough_breaks_into_its_primaries_with_the_ledgers_closing() {
+    // P04's balance for the sphere of the aggregate's volume, b_v = k^{1/3} a: it breaks
+    // into its k primaries when (1 + x)³ ≥ k, x = δK / (4π γ b_v²). Forming the dimer
+    // absorbs δK = ½ (m/2) (2 m/s)² = m (x = 0.08 < 2^{1/3} − 1 = 0.26: it holds); the
+    // monomer bonding to it at v absorbs δK = ½ (2m/3) v² = m v²/3, x = 0.0214 v²/(m²/s²),
+    // which reaches 3^{1/3} − 1 = 0.442 at v = 4.5 m/s: 10 m/s breaks the trimer, 2 m/s
+    // does not.
+    let kept = {
+        let mut sim = Simulation::new(&dimer_hit_by_a_monomer(2.0)).unwrap();
+        sim.run().unwrap();
+        sim
+    };
+    assert_eq!(kept.summary().counters.bonds, 2);
+    assert_eq!(kept.summary().counters.fragmentations, 0);
+    assert_eq!(kept.summary().aggregates.unwrap().count, 1);
+    assert_eq!(kept.ledger().fracture_energy, 0.0);
+
+    let s = dimer_hit_by_a_monomer(10.0);
+    let mut sim = Simulation::new(&s).unwrap();
+    let start = sim.bodies();
+    sim.run().unwrap();
+    let end = sim.bodies();
+    let summary = sim.summary();
+    assert_eq!(summary.counters.bonds, 2, "{:?}", summary.counters);
+    assert_eq!(summary.counters.fragmentations, 1);
+    assert_eq!(summary.counters.fragments_created, 3);
+    // Three aggregates of one, each its own primary, all with the trimer's velocity
+    // (the split moves nothing), in the places where they touched.
+    let aggregates = aggregate_shapes(sim.world());
+    assert_eq!(aggregates.len(), 3);
+    assert!(aggregates.iter().all(|a| a.primaries == 1));
+    assert_eq!(
+        aggregates.iter().map(|a| a.id).collect::<Vec<_>>(),
+        [0, 1, 2]
+    );
+    let v = end[0].velocity;
+    assert!(end.iter().all(|b| b.velocity == v));
+    assert!((v - DVec3::new(-10.0 / 3.0, 0.0, 0.0)).length() < 1e-12 * 10.0);
+    // Mass exact; momentum to rounding (1e-12 of Σ m|v|: three impacts' sums).
+    let mass: f64 = start.iter().map(|b| b.mass).sum();
+    assert_eq!(mass, end.iter().map(|b| b.mass).sum::<f64>());
+    let ((p0, scale), (p1, _)) = (momentum_and_scale(&start), momentum_and_scale(&end));
+    assert!((p1 - p0).length() <= 1e-12 * scale, "{p0} → {p1}");
+    // δZ = γ 4π b_v² (3^{1/3} − 1) with b_v = 3^{1/3} a, booked as fracture energy and
+    // taken from the heat: Σ m C (θ − θ0) = dissipation + reaction heat − δZ (1e-9:
+    // sums of temperatures of 300 K against rises of millikelvins).
+    let ledger = sim.ledger();
+    let b_v = 3f64.cbrt() * B;
+    let dz = 5.0 * 4.0 * std::f64::consts::PI * b_v * b_v * (3f64.cbrt() - 1.0);
+    assert!(
+        (ledger.fracture_energy / dz - 1.0).abs() < 1e-12,
+        "{:e} against {dz:e}",
+        ledger.fracture_energy
+    );
+    let lost = kinetic(&start) - kinetic(&end);
+    assert!((lost - ledger.impact_dissipation).abs() <= 1e-12 * kinetic(&start));
+    let heat: f64 = end
+        .iter()
+        .map(|b| b.mass * s.material.C * (b.temperature - 300.0))
+        .sum();
+    let booked = ledger.impact_dissipation + ledger.reaction_heat - ledger.fracture_energy;
+    assert!(
+        (heat - booked).abs() <= 1e-9 * ledger.impact_dissipation,
+        "heat {heat:e} J, booked {booked:e} J"
+    );
+    assert!(summary.invariant_violations.is_empty());
+    assert!(
+        summary.max_energy_error <= 1e-12,
+        "{}",
+        summary.max_energy_error
+    );
+}
+
+#[test]
+fn a_cluster_cluster_run_with_fragmentation_conserves_and_books_the_fracture_energy() {
+    // γ = 5e-3 J/m² on the 600-primary cloud: 1562 bonds and 698 aggregates broken into
+    // 1683 primaries (measured), so breaking is common and follows bonds closely.
+    let mut s = cluster_cluster(600, 0.4, 7);
+    s.material.gamma = Some(5e-3);
+    s.physics.fragmentation = true;
+    let mut sim = Simulation::new(&s).expect("builds");
+    let start = sim.bodies();
+    sim.run().expect("runs");
+    let end = sim.bodies();
+    let summary = sim.summary();
+    assert!(
+        summary.counters.fragmentations >= 100,
+        "{:?}",
+        summary.counters
+    );
+    assert_aggregates_are_rigid_and_connected(&sim);
+    let mass: f64 = start.iter().map(|b| b.mass).sum();
+    assert_eq!(mass, end.iter().map(|b| b.mass).sum::<f64>());
+    let ((p0, scale), (p1, _)) = (momentum_and_scale(&start), momentum_and_scale(&end));
+    assert!((p1 - p0).length() <= 1e-12 * scale, "{p0} → {p1}");
+    // Breaking moves no kinetic energy: what was lost is the impacts' dissipation, and
+    // the heat is dissipation + reaction heat − fracture energy (tolerances as in the
+    // run without fragmentation above).
+    let ledger = sim.ledger();
+    assert!(ledger.fracture_energy > 0.0);
+    let lost = kinetic(&start) - kinetic(&end);
+    assert!((lost - ledger.impact_dissipation).abs() <= 1e-12 * kinetic(&start));
+    let heat: f64 = end
+        .iter()
+        .map(|b| b.mass * s.material.C * (b.temperature - 300.0))
+        .sum();
+    let booked = ledger.impact_dissipation + ledger.reaction_heat - ledger.fracture_energy;
+    assert!(
+        (heat - booked).abs() <= 1e-9 * ledger.impact_dissipation,
+        "heat {heat:e} J, booked {booked:e} J"
+    );
+    assert!(summary.invariant_violations.is_empty());
+    assert!(summary.max_momentum_error <= 1e-12 && summary.max_energy_error <= 1e-12);
+    assert_eq!(summary.counters.overlap_violations, 0);
+}
+
+#[test]
+fn papers_best_case_in_rigid_mode_grows_what_the_docs_quote() {
+    // scenarios/paper2004_best_rigid.json (0.4 s): P04's best case, bonds joining rigid
+    // aggregates. docs/model.md §6.1 quotes this deterministic run (seed 2004).
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenarios/paper2004_best_rigid.json");
+    let s = Scenario::load(&path).expect("loads");
+    let mut sim = Simulation::new(&s).expect("builds");
+    sim.run().expect("runs");
+    let summary = sim.summary();
+    assert_eq!(
+        summary.final_bodies, 1000,
+        "primaries are never merged away"
+    );
+    assert_eq!(
+        (summary.counters.bonds, summary.counters.bounces),
+        (985, 423)
+    );
+    let aggregates = summary.aggregates.expect("aggregates");
+    assert_eq!((aggregates.count, aggregates.max_primaries), (15, 794));
+    let phi = aggregates.mean_filling_factor.expect("k ≥ 5 aggregates");
+    assert!((phi - 0.225).abs() < 5e-4, "{phi}");
+    let fractal = aggregates.fractal.expect("a fit");
+    assert!((fractal.dimension - 2.46).abs() < 5e-3, "{fractal:?}");
+    assert!(summary.invariant_violations.is_empty());
+    assert!(summary.max_momentum_error <= 1e-12 && summary.max_energy_error <= 1e-12);
+}
+
+#[test]
+fn a_rigid_recording_colours_each_primary_by_its_aggregate() {
+    use agglo::record::messages::{SINGLE_PRIMARY_RGB, aggregate_rgb};
+    use foxglove::Decode;
+    use foxglove::schemas::SceneUpdate;
+    use std::collections::BTreeMap;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("rigid.json");
+    // To t = 0.1 s: aggregates of up to 55 primaries and 11 primaries still alone.
+    std::fs::write(&scene, cluster_cluster(300, 0.1, 3).to_json()).unwrap();
+    let (mcap, last) = (dir.path().join("run.mcap"), dir.path().join("final.csv"));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_agglo"))
+        .args(["run", "-q"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&mcap)
+        .arg("--final-state")
+        .arg(&last)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Each primary's aggregate, from the final state's last column.
+    let text = std::fs::read_to_string(&last).unwrap();
+    let mut lines = text.lines();
+    assert!(lines.next().unwrap().ends_with(",aggregate"));
+    let of: BTreeMap<String, u64> = lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (
+                f[0].to_string(),
+                f[f.len() - 1].parse::<f64>().unwrap() as u64,
+            )
+        })
+        .collect();
+    let mut sizes: BTreeMap<u64, usize> = BTreeMap::new();
+    for id in of.values() {
+        *sizes.entry(*id).or_default() += 1;
+    }
+    assert!(sizes.values().any(|&k| k >= 2) && sizes.values().any(|&k| k == 1));
+    // The last /particles snapshot is the final state: every primary in its
+    // aggregate's colour, grey when alone.
+    let buf = std::fs::read(&mcap).unwrap();
+    let update = mcap::MessageStream::new(&buf)
+        .unwrap()
+        .map(|m| m.unwrap())
+        .filter(|m| m.channel.topic == "/particles")
+        .last()
+        .map(|m| SceneUpdate::decode(&m.data[..]).unwrap())
+        .expect("a snapshot");
+    assert_eq!(update.entities.len(), of.len());
+    let mut grey = 0;
+    for e in &update.entities {
+        let c = e.spheres[0].color.unwrap();
+        let aggregate = of[&e.id];
+        let k = sizes[&aggregate];
+        assert_eq!(
+            [c.r, c.g, c.b],
+            aggregate_rgb(aggregate, k),
+            "primary {}",
+            e.id
+        );
+        grey += usize::from(k == 1 && [c.r, c.g, c.b] == SINGLE_PRIMARY_RGB);
+    }
+    assert_eq!(grey, sizes.values().filter(|&&k| k == 1).count());
 }
