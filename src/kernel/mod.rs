@@ -42,8 +42,6 @@ pub use estimate::{
 pub use grid::{GridError, GridKind, MAX_CLASSES, MassGrid, dustpy_mass_grid};
 pub use observer::KernelObserver;
 
-use std::ops::ControlFlow;
-
 use crate::farm::Workers;
 use crate::run::{Run, RunPlan};
 use crate::scenario::Scenario;
@@ -76,42 +74,13 @@ pub fn seeds(scenario: &Scenario, count: u32) -> Vec<u64> {
 }
 
 /// The scenario's simulation with the built-in physics and the registered extensions,
-/// collecting what an [`Accumulator`] reads: the subgrid's replica boxes build through
-/// it (`agglo kernel`'s runs go through [`crate::run::Run`] with a [`KernelObserver`]).
+/// collecting what an [`Accumulator`] reads, for a program that steps it itself (runs
+/// of `agglo kernel` and subgrid boxes go through [`crate::run::Run`] with a
+/// [`KernelObserver`]).
 pub fn simulation(scenario: &Scenario) -> Result<Simulation, crate::error::SimError> {
     let mut builder = crate::plugins::builder(scenario)?;
     subscribe(&mut builder);
     builder.build()
-}
-
-/// Why [`accumulate`] stopped short of the end of the run.
-#[derive(Debug)]
-pub enum Accumulating {
-    /// The accumulator refused (begun twice, not begun, a step it cannot read).
-    Kernel(KernelError),
-    /// The run failed.
-    Run(crate::error::SimError),
-}
-
-/// Step `sim` to its end time feeding `acc` after every step, as one run of its
-/// ensemble ([`Accumulator::begin`] to [`Accumulator::end_run`]): the subgrid's boxes'
-/// loop, the same steps as [`KernelObserver`] takes in a [`crate::run::Run`]. `sim` must
-/// collect what the accumulator reads ([`simulation`]).
-pub fn accumulate(sim: &mut Simulation, acc: &mut Accumulator) -> Result<(), Accumulating> {
-    acc.begin(sim).map_err(Accumulating::Kernel)?;
-    let mut failed = None;
-    let outcome = sim.run_with(|s| match acc.observe(s) {
-        Ok(()) => ControlFlow::Continue(()),
-        Err(e) => {
-            failed = Some(e);
-            ControlFlow::Break(())
-        }
-    });
-    if let Some(e) = failed {
-        return Err(Accumulating::Kernel(e));
-    }
-    outcome.map_err(Accumulating::Run)?;
-    acc.end_run(sim).map_err(Accumulating::Kernel)
 }
 
 /// Run `scenario` with `seed` to its end, accumulating on `grid`.

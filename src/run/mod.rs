@@ -56,6 +56,7 @@ use crate::record::{Recorder, RecordingReport};
 use crate::restart::RestartSnapshot;
 use crate::scenario::Scenario;
 use crate::schedule::Simulation;
+use agglo_systems::diagnostics::InitialEnergies;
 use clamp_watch::ClampWarnings;
 use progress::Progress;
 
@@ -68,6 +69,9 @@ pub struct RunPlan {
     pub scenario: Scenario,
     /// Continue a stopped run from this checkpoint (`agglo run --resume`).
     pub resume: Option<Resume>,
+    /// With `resume`: build the scene without its initial cloud and give what the run
+    /// read of it instead ([`BareResume`]). Ignored without `resume`.
+    pub resume_bare: Option<BareResume>,
     /// The tables sampled during the run and their schedule.
     pub tables: TablePaths,
     /// The per-step tables asked for ([`crate::output::step_tables`]) and their files.
@@ -104,6 +108,20 @@ pub struct Resume {
     pub snapshot: RestartSnapshot,
 }
 
+/// What a run resumed without its scene's initial cloud is given in its place
+/// (`SimBuilder::resuming`, `plugins::resuming_builder`): a driver that kept these when
+/// the run was first built (a subgrid box, `subgrid::BoxStart`) resumes a small end
+/// state without placing, spawning and predicting the whole initial cloud first. The
+/// scene must also give `impact.collapse_time` when it has a restitution (its default
+/// is drawn from the initial velocities).
+#[derive(Debug, Clone, Copy)]
+pub struct BareResume {
+    /// Bodies the run started with (the invariant checks' full recount cadence).
+    pub initial_bodies: usize,
+    /// Its kinetic and thermal energy at t = 0 [J] (the energy ledgers' references).
+    pub energies: InitialEnergies,
+}
+
 impl RunPlan {
     /// The plan of `agglo run SCENARIO` without flags: every output where the scenario's
     /// `output` section puts it.
@@ -135,6 +153,7 @@ impl RunPlan {
             progress: false,
             one_of_many: true,
             resume: None,
+            resume_bare: None,
             tables: TablePaths::default(),
             step_tables: Vec::new(),
             scenario,
@@ -344,6 +363,18 @@ impl Run {
         Self::open(plan, stop, observers, |_| Ok(()))
     }
 
+    /// [`Run::start_observed`] with a last word on the scene's builder (as
+    /// [`Run::start_with`]), given after the observers' subscriptions, right before the
+    /// scene is built.
+    pub fn start_observed_with(
+        plan: RunPlan,
+        stop: Arc<AtomicBool>,
+        observers: Vec<Box<dyn Observer>>,
+        customise: impl FnOnce(&mut crate::schedule::SimBuilder) -> anyhow::Result<()>,
+    ) -> anyhow::Result<Self> {
+        Self::open(plan, stop, observers, customise)
+    }
+
     /// Start `plan` with `observers` (as [`Run::start_observed`]), advance it to T and
     /// finish it: a run of an ensemble, a study or `agglo kernel` in one call. Returns
     /// what the run left and its own outcome (an observer's error is in
@@ -387,7 +418,19 @@ impl Run {
             }
             None => None,
         };
-        let mut builder = crate::plugins::builder(scenario).context("setting up the scene")?;
+        let mut builder = match (&plan.resume, &plan.resume_bare) {
+            (Some(resume), Some(bare)) => {
+                let mut builder = crate::plugins::resuming_builder(
+                    scenario,
+                    &resume.snapshot,
+                    bare.initial_bodies,
+                )
+                .context("setting up the scene")?;
+                builder.insert_resource(bare.energies);
+                builder
+            }
+            _ => crate::plugins::builder(scenario).context("setting up the scene")?,
+        };
         plan.tables.subscribe(&mut builder);
         for (table, _) in &plan.step_tables {
             (table.subscribe)(&mut builder);
@@ -422,6 +465,13 @@ impl Run {
     /// The simulation (read it between advances: its clock, counters, bodies).
     pub fn sim(&self) -> &Simulation {
         &self.sim
+    }
+
+    /// The simulation, for a driver's reading between advances that needs the world
+    /// mutably (a query's state: a subgrid box reads the initial energies its checks
+    /// were built with). Not for changing the run: its outputs would not see it.
+    pub fn sim_mut(&mut self) -> &mut Simulation {
+        &mut self.sim
     }
 
     /// A restart snapshot of now ([`Simulation::snapshot_now`]): this run and one

@@ -4,7 +4,13 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::kernel::{Accumulating, Accumulator, Sampling, Window};
+use std::ops::ControlFlow;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use crate::kernel::{Accumulator, KernelObserver, Sampling, Window};
+use crate::observer::Observer;
+use crate::run::{BareResume, Resume, Run, RunPlan, Until, failure_text};
 use agglo_systems::diagnostics::InitialEnergies;
 use agglo_systems::impact::CollapseGuard;
 use bevy_ecs::world::FromWorld;
@@ -438,8 +444,10 @@ fn placeholder(input: &CellInput) -> PlacedBody {
     }
 }
 
-/// Run `scenario` over its end time (resumed from a kept box's snapshot and start, when
-/// given) and measure it, timing its parts as laps of `lap`.
+/// Run `scenario` over its end time through the door every run takes ([`Run`]: the
+/// built-in physics and the registered extensions; resumed from a kept box's snapshot
+/// and start, when given, without the scene's cloud) and measure it, timing its parts as
+/// laps of `lap`.
 fn run_scene(
     c: &Coupling,
     cell: u64,
@@ -453,62 +461,72 @@ fn run_scene(
         replica,
         reason,
     };
-    // A resumed box is built without its scene's cloud (`placeholder`): the snapshot
-    // brings the bodies.
-    let builder = match &resume {
-        None => crate::plugins::builder(&scenario),
-        Some((snapshot, start)) => {
-            crate::plugins::resuming_builder(&scenario, snapshot, start.bodies as usize).map(
-                |mut b| {
-                    b.insert_resource(InitialEnergies {
-                        kinetic: start.kinetic,
-                        thermal: start.thermal,
-                    });
-                    b
-                },
-            )
-        }
-    };
-    let mut builder = builder.map_err(|e| fail(e.to_string()))?;
-    // Only a box that measures the kernel collects the impact, merge and fragment
-    // messages its accumulator reads.
-    if c.kernel {
-        crate::kernel::subscribe(&mut builder);
-    }
-    lap.to(Part::Build);
-    // The event core's first prediction of every body happens here (a finisher of
-    // `build`, or the core rebuilt by `resume`): what a direct run of the box does
-    // first, timed apart from assembling the box.
-    let mut sim = builder.build().map_err(|e| fail(e.to_string()))?;
     let keeps = c.keep_bodies || c.persist;
-    let box_start = match resume {
-        Some((snapshot, start)) => {
-            sim.resume(&snapshot).map_err(|e| fail(e.to_string()))?;
-            start
-        }
-        None if keeps => BoxStart::of(&mut sim),
+    let seed = scenario.seed;
+    let mut plan = RunPlan::unwritten(scenario);
+    let resumed = resume.map(|(snapshot, start)| {
+        // A resumed box is built without its scene's cloud (`placeholder`): the
+        // snapshot brings the bodies, `start` what the run read of its first ones.
+        plan.resume = Some(Resume {
+            file: PathBuf::from(format!("cell {cell}'s kept box {replica}")),
+            snapshot,
+        });
+        plan.resume_bare = Some(BareResume {
+            initial_bodies: start.bodies as usize,
+            energies: InitialEnergies {
+                kinetic: start.kinetic,
+                thermal: start.thermal,
+            },
+        });
+        start
+    });
+    // Only a box that measures the kernel collects the impact, merge and fragment
+    // messages its accumulator reads (the observer subscribes them).
+    let mut observers: Vec<Box<dyn Observer>> = Vec::new();
+    let kernel = c.kernel.then(|| {
+        let acc = Accumulator::new(c.kernel_grid(), Window::default(), Sampling::default());
+        let (observer, handback) = KernelObserver::new(acc);
+        observers.push(Box::new(observer));
+        handback
+    });
+    // Assembling the box ends with the last word on its builder; building it (the
+    // event core's first prediction of every body, the schedule's initialisation) and
+    // resuming it are the calendar: what a direct run of the box does first.
+    let mut run = Run::start_observed_with(plan, Arc::default(), observers, |_| {
+        lap.to(Part::Build);
+        Ok(())
+    })
+    .map_err(|e| fail(failure_text(&e)))?;
+    let box_start = match resumed {
+        Some(start) => start,
+        None if keeps => BoxStart::of(run.sim_mut()),
         None => BoxStart::default(),
     };
     lap.to(Part::Calendar);
-    let start = ClassSums::of(c, &sim.bodies());
+    let start = ClassSums::of(c, &run.sim().bodies());
     lap.to(Part::Restrict);
-    let (ledger0, counters0) = (sim.ledger(), sim.counters());
-    let kernel = if c.kernel {
-        let mut acc = Accumulator::new(c.kernel_grid(), Window::default(), Sampling::default());
-        crate::kernel::accumulate(&mut sim, &mut acc).map_err(|e| match e {
-            Accumulating::Kernel(e) => fail(format!("kernel: {e}")),
-            Accumulating::Run(e) => fail(e.to_string()),
-        })?;
-        Some(acc)
-    } else {
-        sim.run().map_err(|e| fail(e.to_string()))?;
-        None
+    let (ledger0, counters0) = (run.sim().ledger(), run.sim().counters());
+    let outcome = run.advance(Until::End, &mut |_| ControlFlow::Continue(()));
+    let mut end = run.finish(&outcome);
+    // The accumulator's refusal first: it stopped the run.
+    if let Some(e) = end.output_error.take() {
+        return Err(fail(format!("kernel: {e}")));
+    }
+    outcome.map_err(|e| fail(e.to_string()))?;
+    let kernel = match kernel {
+        Some(handback) => Some(
+            handback
+                .take()
+                .ok_or_else(|| fail("the run ended without its kernel".into()))?,
+        ),
+        None => None,
     };
     lap.to(Part::Run);
-    let end = ClassSums::of(c, &sim.bodies());
+    let sim = &mut end.sim;
+    let end_sums = ClassSums::of(c, &sim.bodies());
     let measured = Replica::new(
         start,
-        end,
+        end_sums,
         &ledger0,
         &sim.ledger(),
         &counters0,
@@ -519,7 +537,7 @@ fn run_scene(
         // The run is complete: every body is at the end time (Simulation::run_until).
         let snapshot = agglo_engine::restart::capture(sim.world_mut());
         let kept = KeptBox {
-            seed: scenario.seed,
+            seed,
             start: box_start,
             snapshot: snapshot.encode(),
         };
@@ -528,7 +546,7 @@ fn run_scene(
     });
     // Freeing the box's world is part of every run's cost, timed apart from the
     // coupling's bookkeeping.
-    drop((sim, scenario));
+    drop(end);
     lap.to(Part::Teardown);
     Ok(ReplicaRun {
         measured,

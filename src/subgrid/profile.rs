@@ -25,7 +25,7 @@ pub enum Part {
     /// Reading a kept box back: its snapshot decoded, its scene's settings made.
     Restore,
     /// Assembling the box's simulation: the scene checked, its bodies spawned, the
-    /// plugins' resources and systems added (`plugins::builder`).
+    /// plugins' resources and systems added (`plugins::builder`, inside `Run`'s start).
     Build,
     /// Finishing it (`SimBuilder::build`: the pipeline's access checks and the
     /// schedule's initialisation, and the event core's first prediction of every body
@@ -33,7 +33,7 @@ pub enum Part {
     /// direct run of the box does first) and, for a kept box, resuming its snapshot
     /// (its bodies spawned, the core rebuilt from them).
     Calendar,
-    /// The box's own run over Δt (the event or time-step core).
+    /// The box's own run over Δt (the event or time-step core), and `Run::finish`.
     Run,
     /// Restriction: the class sums before and after, the replicas' means and SEs.
     Restrict,
