@@ -35,24 +35,7 @@ use agglo_engine::components::{
 use agglo_engine::hooks::{FragmentMessage, Messages};
 use agglo_engine::resources::{IdAllocator, ImpactRecords};
 
-/// Number of equal pieces k = ⌊(1 + x)³⌋, x = δK / (4π γ b0²) (P04 (5.2)).
-pub fn piece_count(absorbed: f64, radius: f64, gamma: f64) -> u64 {
-    if !(gamma.is_finite() && absorbed > 0.0) {
-        return 1;
-    }
-    let x = absorbed / (4.0 * std::f64::consts::PI * gamma * radius * radius);
-    let k = (1.0 + x).powi(3).floor();
-    if k >= u64::MAX as f64 {
-        u64::MAX
-    } else {
-        k as u64
-    }
-}
-
-/// Surface energy δZ = γ 4π b0² (p^{1/3} − 1) of splitting a sphere of radius b0 into p [J].
-pub fn surface_energy(gamma: f64, radius: f64, pieces: u64) -> f64 {
-    gamma * 4.0 * std::f64::consts::PI * radius * radius * ((pieces as f64).cbrt() - 1.0)
-}
+pub use agglo_engine::laws::fragmentation::{piece_count, surface_energy};
 
 /// `count` unit directions spread evenly over the sphere (the Fibonacci lattice).
 fn fibonacci_directions(count: usize) -> Vec<DVec3> {

@@ -34,7 +34,7 @@ use agglo_engine::resources::ImpactRecords;
 use agglo_engine::totals::Totals;
 
 use crate::events::DueBody;
-use crate::fragment::{piece_count, surface_energy};
+use agglo_engine::laws::fragmentation::{piece_count, surface_energy};
 
 /// The system: break every aggregate of this step's impacts whose absorbed energy pays
 /// the surface energy of all its primaries into them.

@@ -7,11 +7,13 @@
 //!   contact and cell-crossing search along them (§4.7);
 //! - [`impact`]: the pair's impact/heat fixed point, its solve and closed forms (§5, §14);
 //! - [`grid`]: the periodic cell grid that finds near pairs, and the periodic images (§4, §9);
-//! - [`cooling`]: the cooling law, its integrators and closed forms (§8).
+//! - [`cooling`]: the cooling law, its integrators and closed forms (§8);
+//! - [`fragmentation`]: the pieces an absorbed energy makes and their surface energy (§7).
 
 pub mod contact_time;
 pub mod cooling;
 pub mod flight;
+pub mod fragmentation;
 pub mod grid;
 pub mod hardness;
 pub mod impact;

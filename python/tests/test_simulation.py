@@ -68,6 +68,23 @@ def test_bodies_are_the_final_state_columns(scenarios, agglo_bin, tmp_path):
     assert bodies.units["mass"] == "kg" and bodies.units["x"] == "m"
 
 
+def test_a_rigid_scene_s_bodies_carry_their_aggregate(scenarios, tmp_path):
+    """Issue 41: `sim.bodies()` of a rigid scene has the final state's `aggregate` column,
+    each primary's aggregate id (the smallest id among its primaries), and the primaries
+    of one aggregate share its velocity (rigid, no rotation)."""
+    rigid = agglo.Scenario.load(scenarios / "bcca.json").set({"cloud.count": 500, "time.end": 0.2})
+    sim = agglo.Simulation(rigid, seed=3)
+    sim.run(final_state=tmp_path / "final.csv")
+    bodies = sim.bodies()
+    csv = pd.read_csv(tmp_path / "final.csv")
+    np.testing.assert_array_equal(bodies["aggregate"], csv["aggregate"].to_numpy())
+    ids, aggregate = bodies["id"].astype(np.int64), bodies["aggregate"].astype(np.int64)
+    groups = pd.DataFrame({"id": ids, "aggregate": aggregate, "vx": bodies["vx"]}).groupby("aggregate")
+    assert (groups["id"].min() == groups["id"].min().index).all(), "the smallest member id"
+    assert (groups.size() > 1).any(), "500 sticky primaries bonded at least once by t = 0.2 s"
+    assert (groups["vx"].max() - groups["vx"].min()).max() == 0.0, "one velocity per aggregate"
+
+
 def test_tables_kept_in_memory_equal_the_files(scenarios, tmp_path):
     a = agglo.Simulation(quick(scenarios), seed=5)
     a.run(tables=["series", "sizes", "collisions"])
