@@ -41,7 +41,7 @@ pub fn records(header: &ChunkHeader, data: &[u8]) -> anyhow::Result<Vec<Record<'
                 .read_to_end(&mut content)?;
         }
         "lz4" => {
-            lz4::Decoder::new(data)?
+            lz4_flex::frame::FrameDecoder::new(data)
                 .take(limit)
                 .read_to_end(&mut content)?;
         }

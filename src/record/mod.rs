@@ -30,7 +30,8 @@
 //! box (`agglo layout`, and `RUN.layout.json` next to every `agglo run --out`) in
 //! [`layout`].
 
-mod chunk;
+#[doc(hidden)]
+pub mod chunk;
 pub mod inspect;
 pub mod layout;
 pub mod messages;

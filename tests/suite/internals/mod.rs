@@ -19,6 +19,7 @@ mod output_sampling;
 mod output_step_tables_impact_speeds;
 mod plugins;
 mod record;
+mod record_chunk;
 mod record_inspect;
 mod record_layout;
 mod record_writer;
