@@ -10,7 +10,7 @@ use super::scenario;
 
 /// Ballistic aggregation's material: every contact sticks and merges (H0 = 1e-6 Pa),
 /// no reaction heat, no cooling; primary radius 2e-4 m, ρ = 1000 kg/m³.
-pub fn sticky_base() -> Scenario {
+fn sticky_base() -> Scenario {
     scenario(json!({
         "seed": 7,
         "cloud": { "count": 2, "radius": 2e-4 },
@@ -20,7 +20,7 @@ pub fn sticky_base() -> Scenario {
 }
 
 /// The mass of one primary (kg) of the coupling's scenario.
-pub fn primary_mass(c: &Coupling) -> f64 {
+fn primary_mass(c: &Coupling) -> f64 {
     c.primary().1
 }
 
