@@ -15,7 +15,7 @@ use glam::DVec3;
 
 fn load(name: &str) -> Scenario {
     Scenario::load(
-        &Path::new(env!("CARGO_MANIFEST_DIR"))
+        &Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
             .join("scenarios")
             .join(name),
     )

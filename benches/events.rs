@@ -23,7 +23,7 @@ static ALLOCATOR: agglo::huge_pages::HugePages = agglo::huge_pages::HugePages;
 
 fn peer(variant: &str, n: usize) -> Scenario {
     Scenario::load(
-        &Path::new(env!("CARGO_MANIFEST_DIR"))
+        &Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
             .join("benches/peers/scenes")
             .join(format!("peer_{variant}_{n}.json")),
     )

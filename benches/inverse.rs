@@ -14,7 +14,7 @@ use agglo::inverse::{Evaluation, GaState, InverseProblem, ga};
 use agglo::prelude::*;
 
 fn p02_sample(c: &mut Criterion) {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("scenarios");
     let problem = InverseProblem::load(&dir.join("paper2002_inverse.json")).unwrap();
     // P02 Table 1 rank 1.
     let rank1 = [

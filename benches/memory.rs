@@ -8,6 +8,11 @@
 //! instead, memory freed by one run and kept by the allocator hid the next run's peak.)
 //! Linux only.
 //!
+//! The child is this bench's own executable, started again with `AGGLO_RUN_AS_CLI` set:
+//! then its `main` is the `agglo` command's (`agglo::cli::main_with`, the same global
+//! allocator), since a bench in a package of its own has no `agglo` binary to hand
+//! (`CARGO_BIN_EXE_agglo` is given to the binary's own package only).
+//!
 //! Run: `cargo bench --bench memory`. The figures are in the README's speed section.
 
 use std::path::Path;
@@ -15,7 +20,13 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use criterion::measurement::{Measurement, ValueFormatter};
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{Criterion, Throughput, criterion_group};
+
+/// Set in the child's environment: run as the `agglo` command.
+const RUN_AS_CLI: &str = "AGGLO_RUN_AS_CLI";
+
+#[global_allocator]
+static ALLOCATOR: agglo::huge_pages::HugePages = agglo::huge_pages::HugePages;
 
 /// Peak resident bytes of a whole `agglo run` of the scene at `path` (one thread, no
 /// recording): the kernel's own figure for the finished child (ru_maxrss), so that
@@ -24,7 +35,9 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 // the child's rusage.
 #[allow(clippy::zombie_processes)]
 fn peak_bytes_of_run(path: &Path) -> f64 {
-    let child = Command::new(env!("CARGO_BIN_EXE_agglo"))
+    let this = std::env::current_exe().expect("the bench's own path");
+    let child = Command::new(this)
+        .env(RUN_AS_CLI, "1")
         .args(["run", path.to_str().expect("UTF-8 path"), "--quiet"])
         .env("RAYON_NUM_THREADS", "1")
         .stdout(Stdio::null())
@@ -91,7 +104,7 @@ fn memory(c: &mut Criterion<BytesPerBody>) {
         .warm_up_time(Duration::from_millis(1))
         .measurement_time(Duration::from_secs(1));
     for n in [10_000usize, 100_000, 1_000_000] {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
             .join(format!("benches/peers/scenes/peer_merge_{n}.json"));
         group.bench_function(format!("N={n}"), |b| {
             b.iter_custom(|iters| {
@@ -114,4 +127,11 @@ criterion_group! {
     config = bytes_per_body();
     targets = memory
 }
-criterion_main!(benches);
+fn main() -> std::process::ExitCode {
+    if std::env::var_os(RUN_AS_CLI).is_some() {
+        return agglo::cli::main_with([]);
+    }
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+    std::process::ExitCode::SUCCESS
+}

@@ -34,7 +34,7 @@ const DT: f64 = 1e-3;
 
 fn p04() -> (Coupling, CellInput) {
     let base = Scenario::load(
-        &Path::new(env!("CARGO_MANIFEST_DIR"))
+        &Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
             .join("scenarios")
             .join("paper2004_best.json"),
     )
