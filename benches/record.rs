@@ -27,7 +27,8 @@ fn run(scenario: &Scenario, out: Option<&Path>) -> u64 {
 }
 
 fn bench(c: &mut Criterion) {
-    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("scenarios/paper2004_best.json");
+    let path =
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("scenarios/paper2004_best.json");
     let scenario = Scenario::load(&path).expect("scenario loads");
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("run.mcap");
