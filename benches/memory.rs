@@ -1,5 +1,5 @@
 //! Peak memory per body (issue 19): the merging peer clouds of `benches/peers/` at
-//! N = 1e4, 1e5 and 1e6, built and run to T in this process, no recording.
+//! N = 1e4, 1e5 and 1e6, each a whole run to T by the `agglo` binary, no recording.
 //!
 //! The figure is the peak resident memory of a whole `agglo run` of the scene (one
 //! thread, no recording; the child's ru_maxrss), divided by N: bytes per body, reported
@@ -8,25 +8,43 @@
 //! instead, memory freed by one run and kept by the allocator hid the next run's peak.)
 //! Linux only.
 //!
-//! The child is this bench's own executable, started again with `AGGLO_RUN_AS_CLI` set:
-//! then its `main` is the `agglo` command's (`agglo::cli::main_with`, the same global
-//! allocator), since a bench in a package of its own has no `agglo` binary to hand
-//! (`CARGO_BIN_EXE_agglo` is given to the binary's own package only).
+//! The child is the release `agglo` binary itself, built first by `cargo build --release
+//! --bin agglo` beside this bench (a bench in a package of its own is not handed it:
+//! `CARGO_BIN_EXE_agglo` is given to the binary's own package only). Started as this
+//! bench's own executable, the child peaked 0.4–0.7 MB higher (its larger image), which is
+//! 4–7 % of the figure at 1e4.
 //!
 //! Run: `cargo bench --bench memory`. The figures are in the README's speed section.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use criterion::measurement::{Measurement, ValueFormatter};
-use criterion::{Criterion, Throughput, criterion_group};
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
-/// Set in the child's environment: run as the `agglo` command.
-const RUN_AS_CLI: &str = "AGGLO_RUN_AS_CLI";
+/// The workspace's top directory (this package is `benches/`).
+const TOP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
 
-#[global_allocator]
-static ALLOCATOR: agglo::huge_pages::HugePages = agglo::huge_pages::HugePages;
+/// The `agglo` binary of this bench's profile, built (or found current) by the cargo
+/// running it: `target/release/agglo` beside this bench's own
+/// `target/release/deps/memory-…` (`target/debug/` under `cargo test --benches`).
+fn agglo_binary() -> PathBuf {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut build = Command::new(cargo);
+    build.args(["build", "--quiet", "-p", "agglo", "--bin", "agglo"]);
+    if !cfg!(debug_assertions) {
+        build.arg("--release");
+    }
+    let status = build.current_dir(TOP).status().expect("cargo starts");
+    assert!(status.success(), "cargo build --bin agglo failed");
+    let this = std::env::current_exe().expect("the bench's own path");
+    let release = this
+        .parent()
+        .and_then(Path::parent)
+        .expect("target/release/deps/");
+    release.join(format!("agglo{}", std::env::consts::EXE_SUFFIX))
+}
 
 /// Peak resident bytes of a whole `agglo run` of the scene at `path` (one thread, no
 /// recording): the kernel's own figure for the finished child (ru_maxrss), so that
@@ -34,10 +52,8 @@ static ALLOCATOR: agglo::huge_pages::HugePages = agglo::huge_pages::HugePages;
 // The child is reaped by wait4 below, which std's wait cannot replace: it also gives
 // the child's rusage.
 #[allow(clippy::zombie_processes)]
-fn peak_bytes_of_run(path: &Path) -> f64 {
-    let this = std::env::current_exe().expect("the bench's own path");
-    let child = Command::new(this)
-        .env(RUN_AS_CLI, "1")
+fn peak_bytes_of_run(agglo: &Path, path: &Path) -> f64 {
+    let child = Command::new(agglo)
         .args(["run", path.to_str().expect("UTF-8 path"), "--quiet"])
         .env("RAYON_NUM_THREADS", "1")
         .stdout(Stdio::null())
@@ -96,6 +112,7 @@ impl ValueFormatter for BytesFormatter {
 }
 
 fn memory(c: &mut Criterion<BytesPerBody>) {
+    let agglo = agglo_binary();
     let mut group = c.benchmark_group("peak memory, merging cloud");
     // Each sample is one whole run (about 25 s at 1e6); the spread is small (the same
     // run each time), so the minimum of 10 samples is enough.
@@ -104,13 +121,12 @@ fn memory(c: &mut Criterion<BytesPerBody>) {
         .warm_up_time(Duration::from_millis(1))
         .measurement_time(Duration::from_secs(1));
     for n in [10_000usize, 100_000, 1_000_000] {
-        let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-            .join(format!("benches/peers/scenes/peer_merge_{n}.json"));
+        let path = Path::new(TOP).join(format!("benches/peers/scenes/peer_merge_{n}.json"));
         group.bench_function(format!("N={n}"), |b| {
             b.iter_custom(|iters| {
                 // Every iteration is the same run: its peak, once per iteration, so
                 // that criterion's per-iteration value is that peak per body.
-                let per_body = peak_bytes_of_run(&path) / n as f64;
+                let per_body = peak_bytes_of_run(&agglo, &path) / n as f64;
                 per_body * iters as f64
             })
         });
@@ -127,11 +143,4 @@ criterion_group! {
     config = bytes_per_body();
     targets = memory
 }
-fn main() -> std::process::ExitCode {
-    if std::env::var_os(RUN_AS_CLI).is_some() {
-        return agglo::cli::main_with([]);
-    }
-    benches();
-    Criterion::default().configure_from_args().final_summary();
-    std::process::ExitCode::SUCCESS
-}
+criterion_main!(benches);
