@@ -111,7 +111,7 @@ fn the_mixture_contact_value_is_enskog_s_for_one_species() {
             "φ = {phi}: {g} against {enskog}"
         );
     }
-    // Two species of equal number, each half the solid volume at φ = 0.1.
+    // Two species, each with half the solid volume of φ = 0.1 (eight small to one large).
     let (small, large) = (1e-3, 2e-3);
     let n_of = |d: f64| 0.05 / (PI / 6.0 * d * d * d);
     let g = collision_kernel::MixtureContact::of(
