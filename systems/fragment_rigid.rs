@@ -38,6 +38,7 @@ use agglo_engine::laws::fragmentation::{piece_count, surface_energy};
 
 /// The system: break every aggregate of this step's impacts whose absorbed energy pays
 /// the surface energy of all its primaries into them.
+#[allow(clippy::too_many_arguments)] // a system: each parameter is one resource it uses
 pub fn fragment_aggregates(
     records: Res<ImpactRecords>,
     scene: SceneConstants,
@@ -46,6 +47,7 @@ pub fn fragment_aggregates(
     books: RunBooks,
     mut commands: Commands,
     mut messages: Option<ResMut<Messages<FragmentMessage>>>,
+    mut absorbed: Local<Vec<(u64, Entity, f64)>>,
 ) {
     let SceneConstants {
         material,
@@ -67,14 +69,15 @@ pub fn fragment_aggregates(
     // (aggregate id, aggregate, absorbed energy): a bond has made one aggregate of two
     // (its primaries all name the keeper by now), which absorbed both sides' energy.
     let aggregate_of = |e: Entity| primaries.get(e).ok().map(|(_, of)| of.0);
-    let mut absorbed: Vec<(u64, Entity, f64)> = Vec::new();
+    // Kept between steps (a `Local`), so that a step with impacts allocates nothing.
+    absorbed.clear();
     for r in &records.records {
         let sides = if r.bonded {
-            vec![(r.a, r.lost_a + r.lost_b)]
+            [Some((r.a, r.lost_a + r.lost_b)), None]
         } else {
-            vec![(r.a, r.lost_a), (r.b, r.lost_b)]
+            [Some((r.a, r.lost_a)), Some((r.b, r.lost_b))]
         };
-        for (primary, energy) in sides {
+        for (primary, energy) in sides.into_iter().flatten() {
             let Some(entity) = aggregate_of(primary) else {
                 continue;
             };
@@ -96,7 +99,7 @@ pub fn fragment_aggregates(
     });
     let clockwork = Clockwork::new(&geometry, &material, &options);
     let now = clock.time;
-    for &(id, entity, energy) in &absorbed {
+    for &(id, entity, energy) in absorbed.iter() {
         let Ok((aggregate, members)) = aggregates.get(entity) else {
             continue;
         };
